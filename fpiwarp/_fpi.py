@@ -1,0 +1,160 @@
+"""The 4-point interpolant f = m_W⁻¹ ∘ A ∘ m_Z (paper §2-3).
+
+m_Z and m_W are Möbius maps sending the source and target quads to
+parallelograms; A is the R-linear map between the parallelograms. Since
+Möbius maps are conformal, f has the constant conformal distortion of A,
+the least maximal distortion possible (paper Property 3); its inverse is
+the FPI of the swapped quads, exact and with the same K.
+"""
+
+import numpy as np
+
+from ._errors import DegenerateQuadError
+from ._linear import RLinear
+from ._quad import check_quad, parallelogram_mobius, signed_area
+from ._transform import Transform, chain
+from .params import Stage
+
+
+def _parallelogram_frame(p):
+    """Center and two edge vectors of a parallelogram p (complex, (4,))."""
+    ea = 0.5 * ((p[1] - p[0]) + (p[2] - p[3]))
+    eb = 0.5 * ((p[3] - p[0]) + (p[2] - p[1]))
+    return p.mean(), ea, eb
+
+
+def affine_between(p, r):
+    """The R-linear map taking parallelogram p to parallelogram r (eq. 3-4)."""
+    cp, pa, pb = _parallelogram_frame(p)
+    cr, ra, rb = _parallelogram_frame(r)
+    det = pa * np.conj(pb) - np.conj(pa) * pb
+    l1 = (ra * np.conj(pb) - np.conj(pa) * rb) / det
+    l2 = (pa * rb - pb * ra) / det
+    return RLinear(l1, l2, cr - l1 * cp - l2 * np.conj(cp))
+
+
+class FPI(Transform):
+    """The 4-point interpolant from quad ``src`` to quad ``dst``.
+
+    ``src`` and ``dst`` are four (x, y) points each, array-like (4, 2), of
+    the same orientation (either one: in image coordinates, y down, what
+    looks counter-clockwise on screen is clockwise in (x, y)). The map
+    sends ``src[j]`` to ``dst[j]``, is a bijection of the plane minus the
+    pole z∞ onto the plane minus its image w∞, and has the constant
+    conformal distortion ``K``.
+
+    >>> f = FPI([[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [2, 0], [2, 1], [0, 1]])
+    >>> round(f.K, 12)
+    2.0
+    >>> f([[0.5, 0.5]]).round(12).tolist()
+    [[1.0, 0.5]]
+    >>> FPI([[0, 0], [1, 1], [1, 0], [0, 1]], [[0, 0], [2, 0], [2, 1], [0, 1]])
+    Traceback (most recent call last):
+    ...
+    fpiwarp._errors.DegenerateQuadError: src is self-intersecting (bow-tie): edge 0-1 crosses edge 2-3
+    """
+
+    def __init__(self, src, dst):
+        z = check_quad(src, "src")
+        w = check_quad(dst, "dst")
+        oz, ow = np.sign(signed_area(z)), np.sign(signed_area(w))
+        if oz != ow:
+            raise DegenerateQuadError(
+                "src and dst have opposite orientations (one is clockwise, the other "
+                "counter-clockwise): no orientation-preserving map joins them"
+            )
+        # The closed form wants counter-clockwise quads in (x, y); solve for
+        # mirrored quads otherwise and mirror the parts back.
+        flip = oz < 0
+        if flip:
+            z, w = np.conj(z), np.conj(w)
+        m_src = parallelogram_mobius(z)
+        m_dst = parallelogram_mobius(w)
+        linear = affine_between(m_src._map(z), m_dst._map(w))
+        if flip:
+            m_src, linear, m_dst = m_src.conjugated(), linear.conjugated(), m_dst.conjugated()
+            z, w = np.conj(z), np.conj(w)
+        self._init_parts(z, w, m_src, linear, m_dst)
+
+    def _init_parts(self, z, w, m_src, linear, m_dst):
+        self._z, self._w = z, w
+        self.m_src, self.linear, self.m_dst = m_src, linear, m_dst
+        self._m_dst_inv = m_dst.inverse
+
+    @classmethod
+    def _from_parts(cls, z, w, m_src, linear, m_dst):
+        obj = cls.__new__(cls)
+        obj._init_parts(z, w, m_src, linear, m_dst)
+        return obj
+
+    @property
+    def src(self):
+        return np.stack([self._z.real, self._z.imag], axis=-1)
+
+    @property
+    def dst(self):
+        return np.stack([self._w.real, self._w.imag], axis=-1)
+
+    @property
+    def K(self):
+        """The constant conformal distortion K >= 1 (eq. 11)."""
+        return self.linear.K
+
+    @property
+    def dilation(self):
+        """The constant conformal dilation (K - 1) / (K + 1)."""
+        return self.linear.dilation
+
+    @property
+    def pole(self):
+        """z∞ = m_Z⁻¹ ∘ A⁻¹ ∘ m_W(∞) as (x, y), or None where f is affine."""
+        return self.inverse.pole_image
+
+    @property
+    def pole_image(self):
+        """w∞ = m_W⁻¹ ∘ A ∘ m_Z(∞) as (x, y), or None where f is affine."""
+        if self.m_src.s == 0:
+            inf_image = None  # m_Z(∞) = ∞, A(∞) = ∞
+        else:
+            inf_image = self.linear._map(self.m_src.beta - self.m_src.alpha / self.m_src.s)
+        if inf_image is None:
+            p = self._m_dst_inv.pole_image
+            return None if p is None else p
+        w = self._m_dst_inv._map(np.complex128(inf_image))
+        return np.array([w.real, w.imag])
+
+    @property
+    def is_affine(self):
+        return self.m_src.s == 0 and self.m_dst.s == 0
+
+    def _map(self, z):
+        return self._m_dst_inv._map(self.linear._map(self.m_src._map(z)))
+
+    def _wirtinger(self, z):
+        w, fz, fzb = self.m_src._wirtinger(z)
+        w, fz, fzb = chain(self.linear, w, fz, fzb)
+        return chain(self._m_dst_inv, w, fz, fzb)
+
+    @property
+    def inverse(self):
+        """The exact inverse: the FPI from dst to src."""
+        return FPI._from_parts(self._w, self._z, self.m_dst, self.linear.inverse, self.m_src)
+
+    def stages(self):
+        m, a, n = self.m_src, self.linear, self._m_dst_inv
+        # pre: m_Z has beta = 0; post: m_W⁻¹ re-centered at 0 (its input,
+        # parallelogram coordinates of unit size, lies near 0).
+        post = _centered_at_zero(n)
+        return [Stage(pre=(m.q, m.s, m.alpha), lam=(a.l1, a.l2, a.l3), post=post)]
+
+    def __repr__(self):
+        return f"FPI(src={self.src.tolist()}, dst={self.dst.tolist()})"
+
+
+def _centered_at_zero(m):
+    """(s2, k2, q2) with m(p) = q2 + k2 p / (1 - s2 p), for m.q == 0 or any q."""
+    if m.q != 0:
+        from ._mobius import Mobius
+
+        m = Mobius(*m.coefficients, center=0)
+    return (m.s, m.alpha, m.beta)

@@ -1,0 +1,148 @@
+"""Möbius maps m(z) = (a z + b) / (c z + d), stored in a centered form.
+
+The centered form m(z) = beta + alpha * u / (1 - s * u), u = z - q, keeps
+the numbers well conditioned in float32 when q sits near the data: s is
+the reciprocal distance from q to the pole (s = 0: no pole, m is a
+similarity), and the inverse has the same form with
+(q, s, alpha, beta) -> (beta, -s / alpha, 1 / alpha, q).
+"""
+
+import numpy as np
+
+from ._transform import Transform
+
+
+def _complex(value, name):
+    value = complex(value)
+    if not np.isfinite(value.real) or not np.isfinite(value.imag):
+        raise ValueError(f"{name} must be finite, got {value}")
+    return value
+
+
+class Mobius(Transform):
+    """A Möbius map, conformal everywhere but at its pole.
+
+    ``Mobius(a, b, c, d)`` is z -> (a z + b) / (c z + d) with ad - bc != 0.
+    ``Mobius.centered(q, s, alpha, beta)`` builds it from the centered form.
+
+    >>> m = Mobius(1, 0, 0, 2)          # z / 2
+    >>> m([[2.0, 4.0]]).tolist()
+    [[1.0, 2.0]]
+    >>> Mobius(1, 2, 2, 4)
+    Traceback (most recent call last):
+    ...
+    ValueError: Möbius coefficients need ad - bc != 0
+    """
+
+    def __init__(self, a, b, c, d, *, center=None):
+        a, b, c, d = (_complex(v, n) for v, n in zip((a, b, c, d), "abcd"))
+        det = a * d - b * c
+        scale = max(abs(a * d), abs(b * c), 1e-300)
+        if abs(det) <= 1e-14 * scale:
+            raise ValueError("Möbius coefficients need ad - bc != 0")
+        q = 0j if center is None else _complex(center, "center")
+        if abs(c * q + d) <= 1e-12 * (abs(c * q) + abs(d)):
+            q = q + (1.0 if c == 0 else -d / c + 1.0)  # move off the pole
+        den = c * q + d
+        self._set(q, -c / den, det / den**2, (a * q + b) / den)
+
+    @classmethod
+    def centered(cls, q, s, alpha, beta):
+        """m(z) = beta + alpha * (z - q) / (1 - s * (z - q))."""
+        obj = cls.__new__(cls)
+        alpha = _complex(alpha, "alpha")
+        if alpha == 0:
+            raise ValueError("alpha must be non-zero")
+        obj._set(_complex(q, "q"), _complex(s, "s"), alpha, _complex(beta, "beta"))
+        return obj
+
+    @classmethod
+    def from_points(cls, src, dst):
+        """The unique Möbius map sending three points to three points."""
+        from ._points import as_complex
+
+        z = as_complex(src, "src")
+        w = as_complex(dst, "dst")
+        if z.shape != (3,) or w.shape != (3,):
+            raise ValueError("from_points needs three source and three target points")
+        # cross-ratio maps of each triple to (0, 1, inf), then compose
+        mz = _to_standard(z)
+        mw = _to_standard(w)
+        return Mobius(*_matmul(_inv(mw), mz), center=z.mean())
+
+    def _set(self, q, s, alpha, beta):
+        self.q, self.s, self.alpha, self.beta = q, s, alpha, beta
+
+    @property
+    def coefficients(self):
+        """(a, b, c, d) with m(z) = (a z + b) / (c z + d)."""
+        q, s, al, be = self.q, self.s, self.alpha, self.beta
+        return (al - be * s, be + be * s * q - al * q, -s, 1 + s * q)
+
+    @property
+    def pole(self):
+        """The point sent to infinity, as (x, y); None for a similarity."""
+        if self.s == 0:
+            return None
+        p = self.q + 1 / self.s
+        return np.array([p.real, p.imag])
+
+    @property
+    def pole_image(self):
+        """The image of infinity, as (x, y); None for a similarity."""
+        if self.s == 0:
+            return None
+        p = self.beta - self.alpha / self.s
+        return np.array([p.real, p.imag])
+
+    K = 1.0
+    dilation = 0.0
+
+    def _map(self, z):
+        u = z - self.q
+        return self.beta + self.alpha * u / (1 - self.s * u)
+
+    def _wirtinger(self, z):
+        u = z - self.q
+        den = 1 - self.s * u
+        w = self.beta + self.alpha * u / den
+        fz = self.alpha / den**2
+        return w, fz, np.zeros_like(fz)
+
+    @property
+    def inverse(self):
+        return Mobius.centered(self.beta, -self.s / self.alpha, 1 / self.alpha, self.q)
+
+    def _fuse_with(self, nxt):
+        if isinstance(nxt, Mobius):
+            return Mobius(*_matmul(nxt.coefficients, self.coefficients), center=self.q)
+        return None
+
+    def conjugated(self):
+        """z -> conj(m(conj z)), the same map seen in the mirrored plane."""
+        return Mobius.centered(*(np.conj(v) for v in (self.q, self.s, self.alpha, self.beta)))
+
+    def stages(self):
+        from .params import Stage
+
+        return [Stage(pre=(self.q, self.s, self.alpha), lam=(1, 0, self.beta))]
+
+    def __repr__(self):
+        return f"Mobius.centered(q={self.q!r}, s={self.s!r}, alpha={self.alpha!r}, beta={self.beta!r})"
+
+
+def _matmul(m, n):
+    a, b, c, d = m
+    e, f, g, h = n
+    return (a * e + b * g, a * f + b * h, c * e + d * g, c * f + d * h)
+
+
+def _inv(m):
+    a, b, c, d = m
+    return (d, -b, -c, a)
+
+
+def _to_standard(z):
+    """Coefficients of the Möbius map sending z0, z1, z2 to 0, 1, inf."""
+    z0, z1, z2 = z
+    return (z1 - z2, -z0 * (z1 - z2), z1 - z0, -z2 * (z1 - z0))

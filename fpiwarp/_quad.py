@@ -1,0 +1,116 @@
+"""Checking quads and finding the Möbius map that makes one a parallelogram.
+
+``parallelogram_mobius`` is the closed form of ../DESIGN notes §1, which
+agrees with the paper's Algorithm 1 (SVD of a 4×6 matrix) but stays
+well conditioned as the quad approaches a parallelogram. In coordinates
+v = (z - q) / rho centered at the centroid q and scaled by the quad's
+radius rho, the map v -> v / (1 - s v) sends the quad to a parallelogram
+iff sum_j (-1)^j v_j / (1 - s v_j) = 0. The cubic terms cancel, leaving
+C2 s² - C1 s + C0 = 0 with C0 = v1 - v2 + v3 - v4: a parallelogram has
+the root s = 0 (no pole). Of the two roots the one whose parallelogram
+keeps the quad's orientation is the map (the other is that map followed
+by 1/z, which turns the quad inside out).
+"""
+
+import itertools
+
+import numpy as np
+
+from ._errors import DegenerateQuadError
+from ._mobius import Mobius
+
+ALTERNATING = np.array([1.0, -1.0, 1.0, -1.0])
+#: |z1 - z2 + z3 - z4| / radius below which a quad counts as a parallelogram
+#: (a few rounding errors; the map changes by less than that much).
+PARALLELOGRAM_TOL = 1e-14
+#: Relative tolerance below which points coincide or are collinear.
+DEGENERACY_TOL = 1e-9
+
+
+def signed_area(z):
+    """Shoelace area of the polygon z (complex), > 0 for counter-clockwise
+    in (x, y) coordinates (which is clockwise on screen, y down)."""
+    return 0.5 * float(np.sum((np.conj(z) * np.roll(z, -1)).imag))
+
+
+def check_quad(points, name="quad"):
+    """Validate four (x, y) points; return them as complex128 of shape (4,).
+
+    Raises DegenerateQuadError naming what is wrong: wrong shape or dtype,
+    NaN or inf, coincident points, three collinear points, zero area, or
+    self-intersecting (bow-tie) edges. Non-convex simple quads are fine.
+    """
+    try:
+        arr = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise DegenerateQuadError(f"{name} must be four numeric (x, y) points: {exc}") from None
+    if arr.shape != (4, 2):
+        raise DegenerateQuadError(f"{name} must have shape (4, 2), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise DegenerateQuadError(f"{name} contains NaN or inf: {arr.tolist()}")
+    z = arr[:, 0] + 1j * arr[:, 1]
+    scale = float(np.max(np.abs(z - z.mean())))
+    if scale == 0:
+        raise DegenerateQuadError(f"{name} has all four points coincident")
+    for i, j in itertools.combinations(range(4), 2):
+        if abs(z[i] - z[j]) <= DEGENERACY_TOL * scale:
+            raise DegenerateQuadError(f"{name} points {i} and {j} coincide: {arr[i].tolist()}")
+    for tri in itertools.combinations(range(4), 3):
+        a, b, c = z[list(tri)]
+        if abs(((b - a) * np.conj(c - a)).imag) <= DEGENERACY_TOL * scale**2:
+            raise DegenerateQuadError(f"{name} points {tri} are collinear")
+    for e, f in ((0, 2), (1, 3)):
+        if _segments_cross(z[e], z[(e + 1) % 4], z[f], z[(f + 1) % 4]):
+            raise DegenerateQuadError(
+                f"{name} is self-intersecting (bow-tie): edge {e}-{(e + 1) % 4} "
+                f"crosses edge {f}-{(f + 1) % 4}"
+            )
+    if abs(signed_area(z)) <= DEGENERACY_TOL * scale**2:
+        raise DegenerateQuadError(f"{name} has zero area")
+    return z
+
+
+def _cross(a, b):
+    return (np.conj(a) * b).imag
+
+
+def _segments_cross(a, b, c, d):
+    """Do the segments ab and cd intersect (properly)?"""
+    d1, d2 = _cross(b - a, c - a), _cross(b - a, d - a)
+    d3, d4 = _cross(d - c, a - c), _cross(d - c, b - c)
+    return d1 * d2 < 0 and d3 * d4 < 0
+
+
+def parallelogram_mobius(z):
+    """The Möbius map sending the quad z (complex, shape (4,), validated)
+    to the corners of a parallelogram of unit radius, keeping orientation."""
+    q = z.mean()
+    rho = float(np.max(np.abs(z - q)))
+    v = (z - q) / rho
+    e = ALTERNATING
+    s1 = v.sum()
+    s2 = 0.5 * (s1 * s1 - np.sum(v * v))
+    c0 = np.sum(e * v)
+    if abs(c0) <= PARALLELOGRAM_TOL:
+        # a parallelogram up to rounding: the affine map, with no pole
+        return Mobius.centered(q, 0, 1 / rho, 0)
+    c1 = s1 * c0 - np.sum(e * v * v)
+    c2 = s2 * c0 - s1 * np.sum(e * v * v) + np.sum(e * v**3)
+    root = np.sqrt(c1 * c1 - 4 * c2 * c0)
+    big = c1 + root if abs(c1 + root) >= abs(c1 - root) else c1 - root
+    candidates = []
+    if big != 0:
+        candidates.append(2 * c0 / big)  # the small root, 0 for a parallelogram
+    if c2 != 0:
+        candidates.append(big / (2 * c2))
+    orientation = np.sign(signed_area(v))
+    best = None
+    for s in candidates:
+        with np.errstate(all="ignore"):
+            p = v / (1 - s * v)
+        if np.all(np.isfinite(p)) and np.sign(signed_area(p)) == orientation:
+            if best is None or abs(s) < abs(best):
+                best = s
+    if best is None:
+        raise DegenerateQuadError("no orientation-preserving Möbius map to a parallelogram")
+    return Mobius.centered(q, best / rho, 1 / rho, 0)

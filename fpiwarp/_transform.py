@@ -1,0 +1,156 @@
+"""The interface every map of fpiwarp shares, and composition of maps.
+
+A map takes (..., 2) arrays of (x, y) points to (..., 2) float64 arrays.
+Inside, each map works on complex numbers and reports its Wirtinger
+derivatives f_z and f_zbar, from which the Jacobian, the conformal
+distortion K = (|f_z| + |f_zbar|) / (|f_z| - |f_zbar|) and the dilation
+|f_zbar| / |f_z| follow for every map type alike.
+
+Composition is in mathematical order: ``(g @ f)(p) == g(f(p))``.
+"""
+
+import numpy as np
+
+from ._points import as_complex, as_xy
+
+
+def chain(outer, inner_value, inner_fz, inner_fzb):
+    """Wirtinger chain rule: value and derivatives of outer ∘ inner."""
+    w, gz, gzb = outer._wirtinger(inner_value)
+    fz = gz * inner_fz + gzb * np.conj(inner_fzb)
+    fzb = gz * inner_fzb + gzb * np.conj(inner_fz)
+    return w, fz, fzb
+
+
+def distortion_from_wirtinger(fz, fzb):
+    """K = (|f_z| + |f_zbar|) / (|f_z| - |f_zbar|); inf where the map folds or
+    is singular (|f_zbar| >= |f_z|), so that a maximum flags it."""
+    a, b = np.abs(fz), np.abs(fzb)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = (a + b) / (a - b)
+    return np.where(a > b, k, np.inf)
+
+
+def jacobian_from_wirtinger(fz, fzb):
+    """The real 2×2 Jacobian J[..., i, j] = d f_i / d x_j."""
+    fx = fz + fzb
+    fy = 1j * (fz - fzb)
+    jac = np.empty(np.shape(fz) + (2, 2), dtype=np.float64)
+    jac[..., 0, 0] = fx.real
+    jac[..., 0, 1] = fy.real
+    jac[..., 1, 0] = fx.imag
+    jac[..., 1, 1] = fy.imag
+    return jac
+
+
+class Transform:
+    """Base class of all maps: call, inverse, Jacobian, distortion, ``@``.
+
+    Subclasses implement ``_wirtinger(z) -> (w, f_z, f_zbar)`` on complex
+    arrays, ``_map(z)`` (value only, for speed), ``inverse`` and
+    ``stages()``, the list of parameter-block stages that the kernels
+    evaluate (see :mod:`fpiwarp.params`).
+    """
+
+    def __call__(self, points):
+        """Map (..., 2) points; float64 (..., 2) out. Points sent to infinity
+        (the pole) come out as inf or nan."""
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            return as_xy(self._map(as_complex(points)))
+
+    def _map(self, z):
+        return self._wirtinger(z)[0]
+
+    def _wirtinger(self, z):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    @property
+    def inverse(self):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def stages(self):  # pragma: no cover - abstract
+        """Parameter-block stages, applied in order, that evaluate this map."""
+        raise NotImplementedError
+
+    def params(self):
+        """The flat float32 parameter block every backend reads."""
+        from .params import pack
+
+        return pack(self.stages())
+
+    def jacobian(self, points):
+        """Analytic Jacobian, shape (..., 2, 2), J[..., i, j] = d f_i / d x_j."""
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            _, fz, fzb = self._wirtinger(as_complex(points))
+        return jacobian_from_wirtinger(fz, fzb)
+
+    def distortion(self, points):
+        """Pointwise conformal distortion K >= 1 (ratio of the Jacobian's
+        singular values); inf where the map folds over."""
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            _, fz, fzb = self._wirtinger(as_complex(points))
+        return distortion_from_wirtinger(fz, fzb)
+
+    def dilation_at(self, points):
+        """Pointwise conformal dilation |f_zbar| / |f_z| = (K - 1) / (K + 1)."""
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            _, fz, fzb = self._wirtinger(as_complex(points))
+            return np.abs(fzb) / np.abs(fz)
+
+    def __matmul__(self, other):
+        if not isinstance(other, Transform):
+            return NotImplemented
+        return Compound([other, self])
+
+
+class Compound(Transform):
+    """Maps applied in sequence: ``Compound([f, g])(p) == g(f(p))``.
+
+    Nested compounds are flattened; Möbius and R-linear neighbours are
+    fused into one map where the algebra allows (a Möbius after a Möbius
+    is one Möbius), so kernels evaluate as few stages as possible.
+    """
+
+    def __init__(self, steps):
+        flat = []
+        for step in steps:
+            if not isinstance(step, Transform):
+                raise TypeError(f"compound steps must be Transforms, got {type(step).__name__}")
+            flat.extend(step.steps if isinstance(step, Compound) else [step])
+        if not flat:
+            raise ValueError("a compound needs at least one step")
+        self.steps = tuple(_fuse(flat))
+
+    def _map(self, z):
+        for step in self.steps:
+            z = step._map(z)
+        return z
+
+    def _wirtinger(self, z):
+        w, fz, fzb = self.steps[0]._wirtinger(z)
+        for step in self.steps[1:]:
+            w, fz, fzb = chain(step, w, fz, fzb)
+        return w, fz, fzb
+
+    @property
+    def inverse(self):
+        return Compound([step.inverse for step in reversed(self.steps)])
+
+    def stages(self):
+        return [stage for step in self.steps for stage in step.stages()]
+
+    def __repr__(self):
+        return f"Compound({list(self.steps)!r})"
+
+
+def _fuse(steps):
+    """Merge neighbouring steps that define a fused map (``_fuse_with``)."""
+    out = []
+    for step in steps:
+        if out:
+            merged = out[-1]._fuse_with(step) if hasattr(out[-1], "_fuse_with") else None
+            if merged is not None:
+                out[-1] = merged
+                continue
+        out.append(step)
+    return out

@@ -1,0 +1,89 @@
+"""Backends by name, each reporting whether it can run here and why not.
+
+A backend module defines ``probe()``, which returns None when the backend
+can run or a one-line reason when it cannot, and ``Backend``, a class with
+``map_points(transform, points)`` and ``warp_image(image, transform,
+output_shape, order=, mode=, cval=)`` working on arrays already validated
+by :mod:`fpiwarp._warp`. Backends are imported and probed lazily, once.
+"""
+
+import importlib
+import threading
+from dataclasses import dataclass
+
+from .._errors import BackendUnavailableError
+
+
+@dataclass(frozen=True)
+class _Entry:
+    module: str
+    extra: str | None  # the pip extra that brings its Python packages
+    system: str = ""  # what else it needs from the system
+
+
+REGISTRY = {
+    "numpy": _Entry("fpiwarp.backends.numpy_backend", None),
+    "opencl": _Entry(
+        "fpiwarp.backends.opencl_backend", "opencl", "an OpenCL driver (e.g. Debian's pocl-opencl-icd)"
+    ),
+    "warp": _Entry("fpiwarp.backends.warp_backend", "warp"),
+    "gl": _Entry(
+        "fpiwarp.backends.gl_backend",
+        "gl",
+        "an EGL/OpenGL 4.3 driver (e.g. Debian's libegl1 libgl1-mesa-dri)",
+    ),
+}
+
+_lock = threading.Lock()
+_status = {}
+_instances = {}
+
+
+def _probe(name):
+    entry = REGISTRY[name]
+    try:
+        module = importlib.import_module(entry.module)
+    except ModuleNotFoundError as exc:
+        if exc.name == entry.module:
+            return None, "not implemented in this version of fpiwarp"
+        return None, f"cannot import {exc.name}"
+    except ImportError as exc:  # pragma: no cover - broken installs
+        return None, f"import failed: {exc}"
+    try:
+        reason = module.probe()
+    except Exception as exc:  # a driver failing to load must not crash the chooser
+        reason = f"{type(exc).__name__}: {exc}"
+    return module, reason
+
+
+def backend_status():
+    """{name: None if available else the reason why not}, for every backend."""
+    with _lock:
+        for name in REGISTRY:
+            if name not in _status:
+                _status[name] = _probe(name)
+        return {name: _status[name][1] for name in REGISTRY}
+
+
+def available_backends():
+    """Names of the backends that can run here."""
+    return [name for name, reason in backend_status().items() if reason is None]
+
+
+def get_backend(name):
+    """The backend object for ``name``; raises BackendUnavailableError with
+    the reason and the extra to install when it cannot run here."""
+    if name not in REGISTRY:
+        raise ValueError(f"unknown backend {name!r}; choose from {sorted(REGISTRY)}")
+    status = backend_status()
+    reason = status[name]
+    if reason is not None:
+        entry = REGISTRY[name]
+        hint = f"install it with: pip install 'fpiwarp[{entry.extra}]'" if entry.extra else ""
+        if entry.system:
+            hint += f" and provide {entry.system}"
+        raise BackendUnavailableError(f"backend {name!r} is unavailable: {reason}; {hint}")
+    with _lock:
+        if name not in _instances:
+            _instances[name] = _status[name][0].Backend()
+        return _instances[name]

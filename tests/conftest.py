@@ -1,0 +1,69 @@
+"""Shared fixtures: backend selection that skips with a reason in a
+developer run but fails in CI for the backends CI must test.
+
+Set FPIWARP_REQUIRE_BACKENDS to a comma-separated list (CI sets
+"opencl,warp,gl"): a listed backend that cannot run fails the tests
+that use it instead of skipping them.
+"""
+
+import os
+
+import numpy as np
+import pytest
+
+import fpiwarp
+from fpiwarp.backends import backend_status
+
+
+def required_backends():
+    value = os.environ.get("FPIWARP_REQUIRE_BACKENDS", "")
+    return {name.strip() for name in value.split(",") if name.strip()}
+
+
+def use_backend(name):
+    """Return the backend name if it can run; else skip (or fail if required)."""
+    reason = backend_status()[name]
+    if reason is not None:
+        message = f"backend {name!r} unavailable: {reason}"
+        if name in required_backends():
+            pytest.fail(message + " (required by FPIWARP_REQUIRE_BACKENDS)")
+        pytest.skip(message)
+    return name
+
+
+@pytest.fixture(params=["numpy", "opencl", "warp", "gl"])
+def any_backend(request):
+    """Every backend in turn: the numpy reference and each kernel backend."""
+    return use_backend(request.param)
+
+
+@pytest.fixture
+def opencl_backend():
+    """The name "opencl" if that backend can run (skip, or fail when required)."""
+    return use_backend("opencl")
+
+
+@pytest.fixture
+def warp_backend():
+    """The name "warp" if that backend can run (skip, or fail when required)."""
+    return use_backend("warp")
+
+
+@pytest.fixture
+def gl_backend():
+    """The name "gl" if that backend can run (skip, or fail when required)."""
+    return use_backend("gl")
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def sample_fpi():
+    """A generic FPI with a pole well away from a 64×48 image."""
+    return fpiwarp.FPI(
+        [[0, 0], [63, 0], [63, 47], [0, 47]],
+        [[4, 3], [60, -2], [66, 50], [-3, 44]],
+    )
