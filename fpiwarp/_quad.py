@@ -12,6 +12,7 @@ keeps the quad's orientation is the map (the other is that map followed
 by 1/z, which turns the quad inside out).
 """
 
+import cmath
 import itertools
 
 import numpy as np
@@ -19,7 +20,7 @@ import numpy as np
 from ._errors import DegenerateQuadError
 from ._mobius import Mobius
 
-ALTERNATING = np.array([1.0, -1.0, 1.0, -1.0])
+ALTERNATING = (1.0, -1.0, 1.0, -1.0)
 #: |z1 - z2 + z3 - z4| / radius below which a quad counts as a parallelogram
 #: (a few rounding errors; the map changes by less than that much).
 PARALLELOGRAM_TOL = 1e-14
@@ -30,7 +31,8 @@ DEGENERACY_TOL = 1e-9
 def signed_area(z):
     """Shoelace area of the polygon z (complex), > 0 for counter-clockwise
     in (x, y) coordinates (which is clockwise on screen, y down)."""
-    return 0.5 * float(np.sum((np.conj(z) * np.roll(z, -1)).imag))
+    z = [complex(v) for v in z]
+    return 0.5 * sum((a.conjugate() * b).imag for a, b in zip(z, z[1:] + z[:1]))
 
 
 def check_quad(points, name="quad"):
@@ -49,29 +51,31 @@ def check_quad(points, name="quad"):
     if not np.all(np.isfinite(arr)):
         raise DegenerateQuadError(f"{name} contains NaN or inf: {arr.tolist()}")
     z = arr[:, 0] + 1j * arr[:, 1]
-    scale = float(np.max(np.abs(z - z.mean())))
+    zs = [complex(v) for v in z]
+    center = sum(zs) / 4
+    scale = max(abs(v - center) for v in zs)
     if scale == 0:
         raise DegenerateQuadError(f"{name} has all four points coincident")
     for i, j in itertools.combinations(range(4), 2):
-        if abs(z[i] - z[j]) <= DEGENERACY_TOL * scale:
+        if abs(zs[i] - zs[j]) <= DEGENERACY_TOL * scale:
             raise DegenerateQuadError(f"{name} points {i} and {j} coincide: {arr[i].tolist()}")
     for tri in itertools.combinations(range(4), 3):
-        a, b, c = z[list(tri)]
-        if abs(((b - a) * np.conj(c - a)).imag) <= DEGENERACY_TOL * scale**2:
+        a, b, c = (zs[k] for k in tri)
+        if abs(((b - a) * (c - a).conjugate()).imag) <= DEGENERACY_TOL * scale**2:
             raise DegenerateQuadError(f"{name} points {tri} are collinear")
     for e, f in ((0, 2), (1, 3)):
-        if _segments_cross(z[e], z[(e + 1) % 4], z[f], z[(f + 1) % 4]):
+        if _segments_cross(zs[e], zs[(e + 1) % 4], zs[f], zs[(f + 1) % 4]):
             raise DegenerateQuadError(
                 f"{name} is self-intersecting (bow-tie): edge {e}-{(e + 1) % 4} "
                 f"crosses edge {f}-{(f + 1) % 4}"
             )
-    if abs(signed_area(z)) <= DEGENERACY_TOL * scale**2:
+    if abs(signed_area(zs)) <= DEGENERACY_TOL * scale**2:
         raise DegenerateQuadError(f"{name} has zero area")
     return z
 
 
 def _cross(a, b):
-    return (np.conj(a) * b).imag
+    return (a.conjugate() * b).imag
 
 
 def _segments_cross(a, b, c, d):
@@ -84,31 +88,35 @@ def _segments_cross(a, b, c, d):
 def parallelogram_mobius(z):
     """The Möbius map sending the quad z (complex, shape (4,), validated)
     to the corners of a parallelogram of unit radius, keeping orientation."""
-    q = z.mean()
-    rho = float(np.max(np.abs(z - q)))
-    v = (z - q) / rho
+    z = [complex(v) for v in z]
+    q = sum(z) / 4
+    rho = max(abs(v - q) for v in z)
+    v = [(p - q) / rho for p in z]
     e = ALTERNATING
-    s1 = v.sum()
-    s2 = 0.5 * (s1 * s1 - np.sum(v * v))
-    c0 = np.sum(e * v)
+    s1 = sum(v)
+    sum_e2 = sum(ej * vj * vj for ej, vj in zip(e, v))
+    c0 = sum(ej * vj for ej, vj in zip(e, v))
     if abs(c0) <= PARALLELOGRAM_TOL:
         # a parallelogram up to rounding: the affine map, with no pole
         return Mobius.centered(q, 0, 1 / rho, 0)
-    c1 = s1 * c0 - np.sum(e * v * v)
-    c2 = s2 * c0 - s1 * np.sum(e * v * v) + np.sum(e * v**3)
-    root = np.sqrt(c1 * c1 - 4 * c2 * c0)
+    s2 = 0.5 * (s1 * s1 - sum(vj * vj for vj in v))
+    c1 = s1 * c0 - sum_e2
+    c2 = s2 * c0 - s1 * sum_e2 + sum(ej * vj**3 for ej, vj in zip(e, v))
+    root = cmath.sqrt(c1 * c1 - 4 * c2 * c0)
     big = c1 + root if abs(c1 + root) >= abs(c1 - root) else c1 - root
     candidates = []
     if big != 0:
         candidates.append(2 * c0 / big)  # the small root, 0 for a parallelogram
     if c2 != 0:
         candidates.append(big / (2 * c2))
-    orientation = np.sign(signed_area(v))
+    orientation = signed_area(v) > 0
     best = None
     for s in candidates:
-        with np.errstate(all="ignore"):
-            p = v / (1 - s * v)
-        if np.all(np.isfinite(p)) and np.sign(signed_area(p)) == orientation:
+        dens = [1 - s * vj for vj in v]
+        if any(abs(d) <= 1e-12 for d in dens):
+            continue
+        p = [vj / d for vj, d in zip(v, dens)]
+        if all(cmath.isfinite(pj) for pj in p) and (signed_area(p) > 0) == orientation:
             if best is None or abs(s) < abs(best):
                 best = s
     if best is None:
