@@ -1,26 +1,42 @@
 """fpiwarp: quasiconformal 4-point warps (Lipman, Kim, Funkhouser 2012)."""
 
 from ._errors import BackendUnavailableError, DegenerateQuadError, InverseNotConvergedError
+from ._constrained import ConstrainedFPI
 from ._fpi import FPI
+from ._local import LocalDeformation
 from ._linear import RLinear
 from ._mobius import Mobius
+from ._tps import ThinPlateSpline
 from ._transform import Compound, Transform
 
-__version__ = "0.1.0"
 from ._warp import map_points, warp_image
 from .backends import available_backends, backend_status
+from .batch import warp_batch, warp_images
+from .io import read_image, write_image
+from .spec import SpecError, load_spec
+
+__version__ = "0.1.0"
 
 __all__ = [
     "FPI",
     "BackendUnavailableError",
     "Compound",
+    "ConstrainedFPI",
     "DegenerateQuadError",
     "InverseNotConvergedError",
+    "LocalDeformation",
     "Mobius",
     "RLinear",
+    "ThinPlateSpline",
     "Transform",
     "available_backends",
     "backend_status",
+    "SpecError",
+    "load_spec",
     "map_points",
+    "read_image",
+    "warp_batch",
+    "warp_images",
+    "write_image",
     "warp_image",
 ]

@@ -1,0 +1,8 @@
+"""``python -m fpiwarp``: the same as the ``fpiwarp`` command."""
+
+import sys
+
+from .cli import main
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,350 @@
+"""The ``fpiwarp`` command: warp one image, a folder of images, or the demo.
+
+``fpiwarp demo [OUTPUT]``
+    warp the bundled sample picture with a 4-point warp of its corners.
+``fpiwarp warp INPUT OUTPUT (--src ... --dst ... [--edges I,J] | --spec SPEC.json)``
+    warp one image file.
+``fpiwarp batch SPEC.json INPUT_DIR OUTPUT_DIR``
+    warp every image of a folder, in parallel, resuming where a previous
+    run stopped.
+``fpiwarp backends``
+    list the backends and why any of them cannot run here.
+
+A user's mistake (a degenerate quad, a bad spec, a missing file, an unknown
+backend, an output that exists) gives one line on stderr and exit status 1;
+Ctrl-C gives status 130. Inputs are never modified and outputs are written
+atomically, so no partial or temporary file is left behind.
+"""
+
+import argparse
+import os
+import re
+import sys
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from ._errors import BackendUnavailableError, InverseNotConvergedError
+from ._fpi import FPI
+from ._sampling import MODES, ORDERS
+from .backends import REGISTRY, backend_status
+from .io import OutputExistsError, check_writable, read_image, write_image
+
+#: The demo's target corners, as fractions of (width - 1, height - 1); the
+#: source corners are the image's own, clockwise on screen from top left.
+DEMO_DST = ((0.18, 0.14), (0.90, 0.02), (0.98, 0.90), (0.04, 0.96))
+DEMO_OUTPUT = "warped-sample.png"
+
+#: Options whose value may start with "-" (negative coordinates).
+_NUMERIC_OPTIONS = ("--src", "--dst", "--edges", "--cval")
+
+
+class UsageError(Exception):
+    """A wrong command line; argparse's usage text is not repeated."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, not usage + message
+        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+
+
+def _numbers(text, count, what):
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise UsageError(f"{what} must be {count} numbers separated by commas, got {text!r}") from None
+    if len(values) != count:
+        raise UsageError(f"{what} must be {count} numbers separated by commas, got {len(values)}")
+    return values
+
+
+def _quad(text, what):
+    return np.array(_numbers(text, 8, what)).reshape(4, 2)
+
+
+def _edges(text):
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    if len(parts) != 2 or not all(p.isdigit() and int(p) <= 3 for p in parts) or parts[0] == parts[1]:
+        raise UsageError(f"--edges must be two different edge numbers 0..3 like 0,2, got {text!r}")
+    return [int(p) for p in parts]
+
+
+def _cval(text):
+    if text is None:
+        return 0.0
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise UsageError(f"--cval must be a number or one number per channel, got {text!r}") from None
+    if not values or not all(np.isfinite(values)):
+        raise UsageError(f"--cval must be finite numbers, got {text!r}")
+    return values[0] if len(values) == 1 else values
+
+
+def _output_shape(text):
+    if text is None:
+        return None
+    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
+    if not m or int(m.group(1)) == 0 or int(m.group(2)) == 0:
+        raise UsageError(f"--output-shape must be WIDTHxHEIGHT like 1920x1080, got {text!r}")
+    return int(m.group(2)), int(m.group(1))  # (rows, cols)
+
+
+def _transform_from_args(args):
+    from .spec import load_spec
+
+    if args.spec is not None:
+        if args.src is not None or args.dst is not None or args.edges is not None:
+            raise UsageError("give either --spec or --src/--dst/--edges, not both")
+        return load_spec(args.spec)
+    if args.src is None or args.dst is None:
+        raise UsageError("give --src and --dst (eight numbers each), or --spec SPEC.json")
+    src, dst = _quad(args.src, "--src"), _quad(args.dst, "--dst")
+    if args.edges is None:
+        return FPI(src, dst)
+    from .spec import _local_deformation
+
+    return _local_deformation()(src, dst, edges=tuple(_edges(args.edges)))
+
+
+def _same_file(a, b):
+    try:
+        return Path(a).resolve() == Path(b).resolve() or (Path(b).exists() and os.path.samefile(a, b))
+    except OSError:
+        return False
+
+
+def _check_output(input_path, output, overwrite):
+    if input_path is not None and _same_file(input_path, output):
+        raise UsageError(f"the output {output} is the input file; inputs are never modified, choose another name")
+    if not overwrite and Path(output).exists():
+        raise OutputExistsError(output)
+
+
+# --------------------------------------------------------------------------
+# Commands
+
+
+def cmd_demo(args):
+    """Warp the bundled sample picture and say where it went and its K."""
+    _check_output(None, args.output, args.overwrite)
+    with resources.as_file(resources.files("fpiwarp.data").joinpath("sample.png")) as sample:
+        image, info = read_image(sample)
+    h, w = image.shape[:2]
+    src = [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]]
+    dst = [[fx * (w - 1), fy * (h - 1)] for fx, fy in DEMO_DST]
+    fpi = FPI(src, dst)
+    from ._warp import warp_image
+
+    warped = warp_image(image, fpi, order=3, backend=args.backend)
+    write_image(args.output, warped, info, overwrite=args.overwrite)
+    print(f"wrote {args.output}")
+    print(f"K = {fpi.K:.4f}")
+    return 0
+
+
+def cmd_warp(args):
+    """Warp one image file."""
+    transform = _transform_from_args(args)
+    output_shape = _output_shape(args.output_shape)
+    cval = _cval(args.cval)
+    if not Path(args.input).exists():
+        raise FileNotFoundError(f"no such file: {args.input}")
+    _check_output(args.input, args.output, args.overwrite)
+    image, info = read_image(args.input)
+    check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
+    from ._warp import warp_image
+
+    warped = warp_image(
+        image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend
+    )
+    write_image(args.output, warped, info, overwrite=args.overwrite)
+    print(f"wrote {args.output}")
+    return 0
+
+
+def cmd_batch(args):
+    """Warp a folder; summary at the end, status 1 if any file failed."""
+    from .batch import BatchSummary, Progress, list_inputs, run_batch
+    from .spec import load_spec
+
+    transform = load_spec(args.spec)
+    output_shape = _output_shape(args.output_shape)
+    cval = _cval(args.cval)
+    if args.jobs < 1:
+        raise UsageError(f"--jobs must be at least 1, got {args.jobs}")
+    total = len(list_inputs(args.input_dir, args.pattern, exclude=args.output_dir))
+    progress = Progress(total, enabled=False if args.no_progress else None)
+    summary = BatchSummary()
+    try:
+        run_batch(
+            transform,
+            args.input_dir,
+            args.output_dir,
+            pattern=args.pattern,
+            jobs=args.jobs,
+            overwrite=args.overwrite,
+            backend=args.backend,
+            order=args.order,
+            mode=args.mode,
+            cval=cval,
+            output_shape=output_shape,
+            progress=progress,
+            scheduler=args.scheduler,
+            summary=summary,
+        )
+    except KeyboardInterrupt:
+        progress.close()
+        _print_summary(summary)
+        return 130
+    progress.close()
+    _print_summary(summary)
+    if summary.total == 0:
+        print(f"fpiwarp: warning: no files in {args.input_dir} match {args.pattern or '*'}", file=sys.stderr)
+    return 0 if summary.ok else 1
+
+
+def _print_summary(summary):
+    lines = summary.report()
+    print(lines[0])
+    for line in lines[1:]:
+        print(line, file=sys.stderr)
+
+
+def cmd_backends(args):
+    """One line per backend: available, or why not and what to install."""
+    for name, reason in backend_status().items():
+        if reason is None:
+            print(f"{name:8} available")
+            continue
+        entry = REGISTRY[name]
+        hint = f" (pip install 'fpiwarp[{entry.extra}]'" if entry.extra else ""
+        if entry.system:
+            hint += f"{'; ' if hint else ' ('}needs {entry.system}"
+        print(f"{name:8} unavailable: {reason}{hint + ')' if hint else ''}")
+    return 0
+
+
+# --------------------------------------------------------------------------
+# Parser and entry point
+
+
+def _add_warp_options(p):
+    p.add_argument("--backend", default="numpy", help="backend name (see 'fpiwarp backends'); default numpy")
+    p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
+    p.add_argument("--mode", choices=MODES, default="constant", help="border mode (default constant)")
+    p.add_argument("--cval", help="value outside the image in constant mode: V or V1,V2,... per channel")
+    p.add_argument("--output-shape", metavar="WxH", help="output size in pixels (default the input's)")
+    p.add_argument("--overwrite", action="store_true", help="replace outputs that exist")
+
+
+def build_parser():
+    parser = _Parser(
+        prog="fpiwarp",
+        description="Quasiconformal 4-point image warps (Lipman, Kim, Funkhouser 2012). "
+        "Coordinates are pixels: x = column, y = row, pixel centers at integers.",
+    )
+    parser.add_argument("--version", action="version", version=f"fpiwarp {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("demo", help="warp the bundled sample picture", description=cmd_demo.__doc__)
+    p.add_argument("output", nargs="?", default=DEMO_OUTPUT, help=f"output file (default {DEMO_OUTPUT})")
+    p.add_argument("--backend", default="numpy", help="backend name (see 'fpiwarp backends'); default numpy")
+    p.add_argument("--overwrite", action="store_true", help="replace the output if it exists")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser(
+        "warp",
+        help="warp one image",
+        description="Warp one image by a 4-point map sending --src corners to --dst corners "
+        "(or by a JSON spec). The output's format follows its extension.",
+    )
+    p.add_argument("input", help="image file to read (never modified)")
+    p.add_argument("output", help="image file to write")
+    p.add_argument("--src", metavar="X1,Y1,...,X4,Y4", help="four source corners")
+    p.add_argument("--dst", metavar="X1,Y1,...,X4,Y4", help="where the four corners go")
+    p.add_argument("--edges", metavar="I,J", help="constrain edges I and J (edge k joins corner k and k+1)")
+    p.add_argument("--spec", metavar="SPEC.json", help="a JSON spec instead of --src/--dst")
+    _add_warp_options(p)
+    p.set_defaults(func=cmd_warp)
+
+    p = sub.add_parser(
+        "batch",
+        help="warp every image of a folder",
+        description="Warp every image of INPUT_DIR into OUTPUT_DIR with one map, keeping names, "
+        "formats and metadata. Existing outputs are skipped (a rerun resumes) unless --overwrite; "
+        "files that fail are listed at the end and make the exit status 1.",
+    )
+    p.add_argument("spec", metavar="SPEC.json", help="the JSON spec of the warp")
+    p.add_argument("input_dir", metavar="INPUT_DIR")
+    p.add_argument("output_dir", metavar="OUTPUT_DIR", help="created if missing; must differ from INPUT_DIR")
+    p.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), help="parallel workers")
+    p.add_argument("--pattern", metavar="GLOB", help="files to take, e.g. '*.jpg' or '**/*.png' (default all)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster (tcp://host:8786)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_warp_options(p)
+    p.set_defaults(func=cmd_batch)
+
+    p = sub.add_parser("backends", help="list backends and why any cannot run")
+    p.set_defaults(func=cmd_backends)
+    return parser
+
+
+def _join_numeric_options(argv):
+    """'--src -3,4,...' -> '--src=-3,4,...': argparse would take a value
+    starting with '-' for an option."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in _NUMERIC_OPTIONS and i + 1 < len(argv):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
+def _message(exc):
+    if isinstance(exc, OutputExistsError):
+        return f"{exc.filename} already exists; pass --overwrite to replace it"
+    if isinstance(exc, OSError) and exc.strerror and exc.filename:
+        return f"{exc.strerror}: {exc.filename}"
+    if isinstance(exc, ModuleNotFoundError):
+        return f"missing Python package: {exc.name}"
+    return str(exc) or type(exc).__name__
+
+
+#: Exceptions that mean the user asked for something impossible: one line.
+USER_ERRORS = (
+    UsageError,
+    ValueError,  # SpecError, DegenerateQuadError, ImageError, bad options
+    OSError,  # missing files, permissions, full disks, output exists
+    ImportError,  # an optional package (Dask) not installed
+    BackendUnavailableError,
+    InverseNotConvergedError,
+)
+
+
+def main(argv=None):
+    """Run the command line; return the exit status."""
+    argv = _join_numeric_options(list(sys.argv[1:] if argv is None else argv))
+    try:
+        args = build_parser().parse_args(argv)
+        if args.command is None:
+            build_parser().print_help()
+            return 2
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("fpiwarp: interrupted", file=sys.stderr)
+        return 130
+    except UsageError as exc:
+        text = str(exc)
+        print(text if text.startswith("fpiwarp") else f"fpiwarp: {text}", file=sys.stderr)
+        return 2
+    except USER_ERRORS as exc:
+        print(f"fpiwarp: error: {' '.join(_message(exc).split())}", file=sys.stderr)
+        return 1

@@ -1,0 +1,238 @@
+"""Warp specifications: a deformation written down as JSON.
+
+Three kinds of spec, told apart by their fields (or by an optional
+``"type"``):
+
+* an FPI, ``{"src": [[x, y] ×4], "dst": [[x, y] ×4]}``: the 4-point
+  interpolant sending each ``src`` corner to the ``dst`` corner of the same
+  index (:class:`fpiwarp.FPI`);
+* a local deformation, ``{"src": ..., "dst": ..., "edges": [i, j]}``: the
+  operator of the paper's §4.1 with edges i and j constrained, edge k
+  joining corner k to corner k+1 (:class:`fpiwarp.LocalDeformation`);
+* a compound, ``{"steps": [spec, spec, ...]}``: the steps applied in order,
+  the first to the source image (:class:`fpiwarp.Compound`).
+
+Every object may also carry ``"description"`` (text) and ``"$schema"``.
+Coordinates are pixels: x = column, y = row, pixel centers at integers.
+The JSON schema of this format ships as ``fpiwarp/data/spec.schema.json``
+(see :func:`schema`); :func:`validate_spec` checks the same rules and says
+which field is wrong, and :func:`build_transform` also checks the geometry
+(degenerate quads), which a schema cannot express.
+
+>>> t = build_transform({"src": [[0, 0], [9, 0], [9, 9], [0, 9]],
+...                      "dst": [[1, 0], [9, 1], [8, 9], [0, 8]]})
+>>> type(t).__name__
+'FPI'
+>>> validate_spec({"steps": [{"src": [[0, 0], [1, 0], [1, 1]], "dst": []}]})
+Traceback (most recent call last):
+...
+fpiwarp.spec.SpecError: steps[0].src: must be a list of 4 [x, y] points, got a list of 3 items
+"""
+
+import json
+import numbers
+from importlib import resources
+
+from ._errors import DegenerateQuadError
+from ._fpi import FPI
+from ._transform import Compound
+
+__all__ = ["SpecError", "build_transform", "load_spec", "parse_spec", "save_spec", "schema", "to_spec", "validate_spec"]
+
+KINDS = ("fpi", "local", "compound")
+COMMON_FIELDS = ("type", "description", "$schema")
+FIELDS = {
+    "fpi": ("src", "dst"),
+    "local": ("src", "dst", "edges"),
+    "compound": ("steps",),
+}
+
+
+class SpecError(ValueError):
+    """A spec that is not valid; the message starts with the field's path
+    (``steps[1].dst[2]``) and says what is wrong with it."""
+
+
+def _where(path, name):
+    if isinstance(name, int):
+        return f"{path}[{name}]"
+    return f"{path}.{name}" if path else name
+
+
+def _fail(path, problem):
+    raise SpecError(f"{path or 'spec'}: {problem}")
+
+
+def _describe(value):
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if value is None:
+        return "null"
+    if isinstance(value, dict):
+        return "an object"
+    if isinstance(value, list):
+        return f"a list of {len(value)} items"
+    if isinstance(value, str):
+        return f"the text {value!r}"
+    return repr(value)
+
+
+def _is_number(value):
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _is_integer(value):
+    return _is_number(value) and float(value).is_integer()
+
+
+def spec_kind(spec, path=""):
+    """'fpi', 'local' or 'compound': ``type`` if given, else by fields."""
+    if not isinstance(spec, dict):
+        _fail(path, f"must be a JSON object, got {_describe(spec)}")
+    if "type" in spec:
+        kind = spec["type"]
+        if kind not in KINDS:
+            _fail(_where(path, "type"), f"must be one of {', '.join(map(repr, KINDS))}, got {_describe(kind)}")
+        return kind
+    if "steps" in spec:
+        return "compound"
+    if "edges" in spec:
+        return "local"
+    return "fpi"
+
+
+def validate_spec(spec, path=""):
+    """Check the structure of a spec (a dict from JSON); raise SpecError
+    naming the first wrong field. Agrees with the published JSON schema."""
+    kind = spec_kind(spec, path)
+    allowed = FIELDS[kind] + COMMON_FIELDS
+    for key in spec:
+        if key not in allowed:
+            _fail(path, f"unknown field {key!r} in a {kind} spec (allowed: {', '.join(allowed)})")
+    for key in FIELDS[kind]:
+        if key not in spec:
+            _fail(path, f"missing required field {key!r} of a {kind} spec")
+    for key in ("description", "$schema"):
+        if key in spec and not isinstance(spec[key], str):
+            _fail(_where(path, key), f"must be text, got {_describe(spec[key])}")
+    if kind == "compound":
+        steps = spec["steps"]
+        if not isinstance(steps, list) or not steps:
+            _fail(_where(path, "steps"), f"must be a non-empty list of specs, got {_describe(steps)}")
+        for i, step in enumerate(steps):
+            validate_spec(step, _where(_where(path, "steps"), i))
+        return
+    for key in ("src", "dst"):
+        _check_quad(spec[key], _where(path, key))
+    if kind == "local":
+        _check_edges(spec["edges"], _where(path, "edges"))
+
+
+def _check_quad(value, path):
+    if not isinstance(value, list) or len(value) != 4:
+        _fail(path, f"must be a list of 4 [x, y] points, got {_describe(value)}")
+    for i, point in enumerate(value):
+        if not isinstance(point, list) or len(point) != 2 or not all(_is_number(v) for v in point):
+            _fail(_where(path, i), f"must be [x, y] (two numbers), got {_describe(point)}")
+
+
+def _check_edges(value, path):
+    if (
+        not isinstance(value, list)
+        or len(value) != 2
+        or not all(_is_integer(v) and 0 <= v <= 3 for v in value)
+        or value[0] == value[1]
+    ):
+        _fail(
+            path,
+            f"must be two different edge numbers from 0 to 3 (edge k joins corner k and k+1), got {_describe(value)}",
+        )
+
+
+def build_transform(spec, path=""):
+    """The transform a spec describes; SpecError for a bad spec, naming the
+    field, including degenerate quads and inconsistent constraints."""
+    validate_spec(spec, path)
+    return _build(spec, path)
+
+
+def _build(spec, path):
+    kind = spec_kind(spec, path)
+    if kind == "compound":
+        steps_path = _where(path, "steps")
+        return Compound([_build(step, _where(steps_path, i)) for i, step in enumerate(spec["steps"])])
+    try:
+        if kind == "fpi":
+            return FPI(spec["src"], spec["dst"])
+        edges = tuple(int(e) for e in spec["edges"])
+        return _local_deformation()(spec["src"], spec["dst"], edges=edges)
+    except SpecError:
+        raise
+    except (DegenerateQuadError, ValueError, ArithmeticError) as exc:
+        _fail(path, str(exc))
+
+
+def _local_deformation():
+    try:
+        from ._local import LocalDeformation
+    except ImportError as exc:
+        raise SpecError(f"local deformations (specs with 'edges') are not available in this fpiwarp: {exc}") from None
+    return LocalDeformation
+
+
+def _reject_constant(name):
+    raise ValueError(f"{name} is not valid JSON (numbers must be finite)")
+
+
+def parse_spec(text, name="spec"):
+    """The transform of a spec given as JSON text; ``name`` prefixes errors."""
+    try:
+        data = json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise SpecError(f"{name}: not valid JSON: {exc}") from None
+    except ValueError as exc:
+        raise SpecError(f"{name}: {exc}") from None
+    try:
+        return build_transform(data)
+    except SpecError as exc:
+        raise SpecError(f"{name}: {exc}") from None
+
+
+def load_spec(path):
+    """The transform of the JSON spec file at ``path``."""
+    with open(path, encoding="utf-8") as f:
+        try:
+            text = f.read()
+        except UnicodeDecodeError:
+            raise SpecError(f"{path}: not a JSON text file") from None
+    return parse_spec(text, str(path))
+
+
+def to_spec(transform):
+    """A spec (dict) describing ``transform``: an FPI, a local deformation
+    or a compound of those. TypeError for maps a spec cannot describe."""
+    if isinstance(transform, FPI):
+        return {"src": transform.src.tolist(), "dst": transform.dst.tolist()}
+    if isinstance(transform, Compound):
+        return {"steps": [to_spec(step) for step in transform.steps]}
+    if type(transform).__name__ == "LocalDeformation" and hasattr(transform, "edges"):
+        return {
+            "src": [[float(x), float(y)] for x, y in transform.src],
+            "dst": [[float(x), float(y)] for x, y in transform.dst],
+            "edges": [int(e) for e in transform.edges],
+        }
+    raise TypeError(f"a spec cannot describe a {type(transform).__name__}; use FPI, LocalDeformation or Compound")
+
+
+def save_spec(transform, path, *, overwrite=False):
+    """Write ``transform`` as a JSON spec file, atomically."""
+    from .io import atomic_write
+
+    text = json.dumps(to_spec(transform), indent=2) + "\n"
+    atomic_write(path, lambda f: f.write(text.encode("utf-8")), overwrite=overwrite)
+
+
+def schema():
+    """The JSON schema (draft 2020-12) of specs, as a dict."""
+    text = resources.files("fpiwarp.data").joinpath("spec.schema.json").read_text(encoding="utf-8")
+    return json.loads(text)
