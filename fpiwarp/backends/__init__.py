@@ -30,7 +30,7 @@ REGISTRY = {
     "gl": _Entry(
         "fpiwarp.backends.gl_backend",
         "gl",
-        "an EGL/OpenGL 4.3 driver (e.g. Debian's libegl1 libgl1-mesa-dri)",
+        "an EGL/OpenGL 3.3+ driver (e.g. Debian's libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri)",
     ),
 }
 

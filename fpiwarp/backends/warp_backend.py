@@ -1,0 +1,269 @@
+"""The ``"warp"`` backend: NVIDIA Warp kernels on CUDA or Warp's CPU device.
+
+The map is packed once on the host (:meth:`fpiwarp.Transform.params`) and
+uploaded as an array of ``vec4`` rows; the kernels in
+:mod:`fpiwarp.kernels.warp_map` are compiled once per device and cached on
+disk by Warp (its default cache directory, or ``WARP_CACHE_PATH``).
+
+Device choice: the ``device`` argument of :class:`Backend`, else the
+environment variable ``FPIWARP_WARP_DEVICE`` (``"cpu"``, ``"cuda:0"``, ...),
+else ``cuda:0`` when CUDA is available and ``cpu`` otherwise.
+
+Warp's CPU device runs each launch on one thread, so on the CPU a large
+call is split into bands of rows (ranges of points) launched from a small
+thread pool; Warp releases the GIL while a CPU kernel runs. The number of
+threads comes from the ``threads`` argument, else ``FPIWARP_WARP_THREADS``,
+else the CPUs this process may use.
+
+On the CPU the kernels read and write the caller's numpy arrays in place
+(no copies); on CUDA the device buffers are kept and reused while calls
+keep the same shape.
+"""
+
+import contextlib
+import ctypes
+import itertools
+import operator
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from .._sampling import MODES
+from ..params import MAX_STAGES, STAGE_ROWS
+
+#: Environment variable naming the Warp device, e.g. "cpu" or "cuda:0".
+DEVICE_ENV = "FPIWARP_WARP_DEVICE"
+#: Environment variable with the number of CPU threads (CPU device only).
+THREADS_ENV = "FPIWARP_WARP_THREADS"
+#: Below this many work items a CPU call is one launch on the calling thread.
+MIN_ITEMS_PER_THREAD = 1 << 16
+
+_MAX_ROWS = 1 + MAX_STAGES * STAGE_ROWS
+_TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
+_init_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def _quiet_native_stderr():
+    """Silence C-level stderr while Warp initializes on a machine without a
+    CUDA driver, where its native library prints a warning we do not need."""
+    try:
+        ctypes.CDLL("libcuda.so.1")
+        has_driver = True
+    except OSError:
+        has_driver = False
+    if has_driver:
+        yield
+        return
+    try:
+        saved = os.dup(2)
+    except OSError:  # pragma: no cover - no stderr to silence
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
+def _warp():
+    """Import and initialize Warp quietly, once; return the module."""
+    import warp as wp
+
+    with _init_lock:
+        wp.config.quiet = True  # Warp < 1.10
+        if hasattr(wp, "LOG_WARNING"):
+            wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+        with _quiet_native_stderr():
+            wp.init()
+    return wp
+
+
+def _device_name(wp, device=None):
+    """The device to use: argument, else the environment, else cuda:0 or cpu."""
+    name = device or os.environ.get(DEVICE_ENV, "").strip()
+    if not name:
+        return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
+    known = [str(d) for d in wp.get_devices()]
+    if name not in known:
+        raise ValueError(f"Warp device {name!r} is not available here; choose from {known}")
+    return name
+
+
+def _thread_count(threads=None):
+    """Threads for CPU launches: argument, else the environment, else the CPUs."""
+    source = "threads"
+    if threads is None:
+        value = os.environ.get(THREADS_ENV, "").strip()
+        if not value:
+            try:
+                return len(os.sched_getaffinity(0))
+            except AttributeError:  # pragma: no cover - not Linux
+                return os.cpu_count() or 1
+        source, threads = THREADS_ENV, value
+    try:
+        count = int(threads) if isinstance(threads, str) else operator.index(threads)
+    except (TypeError, ValueError):
+        count = 0
+    if isinstance(threads, bool) or count < 1:
+        raise ValueError(f"{source} must be a positive integer, got {threads!r}")
+    return count
+
+
+def probe():
+    """None if Warp imports and the chosen device exists, else why not."""
+    try:
+        import warp  # noqa: F401
+    except ImportError:
+        return "warp-lang is not installed"
+    wp = _warp()
+    try:
+        name = _device_name(wp)
+    except ValueError as exc:
+        return f"{exc} (set by {DEVICE_ENV})"
+    try:
+        _thread_count()
+    except ValueError as exc:
+        return str(exc)
+    if name == "cpu" and not wp.is_cpu_available():
+        return "Warp's CPU device is not available (its LLVM compiler could not load)"
+    return None
+
+
+class Backend:
+    """Evaluate maps with Warp kernels on one device (see the module docstring).
+
+    Parameters
+    ----------
+    device : str, optional
+        A Warp device name such as ``"cpu"`` or ``"cuda:0"``; default from
+        ``FPIWARP_WARP_DEVICE``, else CUDA when present, else the CPU.
+    threads : int, optional
+        CPU threads for large calls on the CPU device; default from
+        ``FPIWARP_WARP_THREADS``, else the CPUs this process may use.
+
+    The kernels are loaded (compiled, or read from Warp's disk cache) here.
+    """
+
+    name = "warp"
+
+    def __init__(self, device=None, threads=None):
+        self._wp = wp = _warp()
+        self.device = wp.get_device(_device_name(wp, device))
+        self._on_cpu = self.device.is_cpu
+        self.threads = _thread_count(threads) if self._on_cpu else 1
+        from fpiwarp.kernels import warp_map
+
+        self._k = warp_map
+        wp.load_module(warp_map, device=self.device)
+        self._lock = threading.Lock()
+        self._pool = ThreadPoolExecutor(self.threads, "fpiwarp-warp") if self.threads > 1 else None
+        self._block = wp.zeros(_MAX_ROWS, dtype=wp.vec4, device=self.device)
+        self._block_staging = self._block if self._on_cpu else wp.zeros_like(self._block, device="cpu", pinned=True)
+        self._block_host = self._block_staging.numpy()  # a (rows, 4) float32 view of host memory
+        self._buffers = {}
+
+    def __repr__(self):
+        return f"<fpiwarp warp backend on {self.device}, {self.threads} thread(s)>"
+
+    def _launch(self, kernel, rows, cols, inputs):
+        """Launch ``kernel`` over (rows, cols), or over rows when cols is None;
+        the kernel's last input is the first row. On the CPU, large launches
+        are split into one band of rows per thread."""
+        wp = self._wp
+        bands = min(self.threads, max(1, rows * (cols or 1) // MIN_ITEMS_PER_THREAD))
+
+        def launch(r0, r1):
+            dim = r1 - r0 if cols is None else (r1 - r0, cols)
+            wp.launch(kernel, dim=dim, inputs=[*inputs, r0], device=self.device)
+
+        if bands == 1:
+            launch(0, rows)
+            return
+        cuts = [rows * b // bands for b in range(bands + 1)]
+        futures = [self._pool.submit(launch, r0, r1) for r0, r1 in itertools.pairwise(cuts)]
+        for future in futures:
+            future.result()
+
+    def _upload_block(self, transform):
+        """Write the map's parameter block into the persistent device buffer
+        (on CUDA through a pinned host copy of it)."""
+        block = transform.params()
+        rows = block.shape[0]
+        self._block_host[:rows] = block
+        if not self._on_cpu:
+            self._wp.copy(self._block, self._block_staging, count=rows)
+        return self._block
+
+    def _buffer(self, key, shape, dtype):
+        """A device array kept across calls while ``key``'s shape and dtype hold."""
+        wp = self._wp
+        arr = self._buffers.get(key)
+        if arr is None or arr.shape != shape or arr.dtype != dtype:
+            arr = wp.empty(shape, dtype=dtype, device=self.device)
+            self._buffers[key] = arr
+        return arr
+
+    def _to_device(self, key, data, dtype):
+        """``data`` on the device: aliased on the CPU, copied into a kept buffer on CUDA."""
+        wp = self._wp
+        if self._on_cpu:
+            return wp.array(data, dtype=dtype, device="cpu", copy=False)
+        shape = data.shape[:-1] if dtype is wp.vec2d else data.shape
+        arr = self._buffer(key, shape, dtype)
+        arr.assign(data)
+        return arr
+
+    def map_points(self, transform, points):
+        """Map float64 (..., 2) points; float64 out, float32 arithmetic on the device."""
+        wp = self._wp
+        shape = points.shape
+        flat = np.ascontiguousarray(points.reshape(-1, 2), dtype=np.float64)
+        n = flat.shape[0]
+        if n == 0:
+            return np.empty(shape, dtype=np.float64)
+        with self._lock:
+            blk = self._upload_block(transform)
+            src = self._to_device("points", flat, wp.vec2d)
+            if self._on_cpu:
+                result = np.empty_like(flat)
+                out = wp.array(result, dtype=wp.vec2d, device="cpu", copy=False)
+            else:
+                out = self._buffer("mapped", (n,), wp.vec2d)
+            self._launch(self._k.map_points_kernel, n, None, [blk, src, out])
+            if not self._on_cpu:
+                result = out.numpy()
+        return result.reshape(shape)
+
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval):
+        """Backward warp: each output pixel samples the source at ``transform.inverse``."""
+        wp = self._wp
+        oh, ow = output_shape
+        channels = image.shape[2]
+        dtype = image.dtype
+        scalar = wp.dtype_from_numpy(dtype)
+        cv = np.zeros(4, dtype=np.float32)
+        cv[:channels] = cval
+        with self._lock:
+            blk = self._upload_block(transform.inverse)
+            src = self._to_device("image", image, scalar)
+            if self._on_cpu:
+                result = np.empty((oh, ow, channels), dtype=dtype)
+                out = wp.array(result, dtype=scalar, device="cpu", copy=False)
+            else:
+                out = self._buffer("warped", (oh, ow, channels), scalar)
+            self._launch(
+                self._k.IMAGE_KERNELS[order],
+                oh,
+                ow,
+                [blk, src, out, MODES.index(mode), wp.vec4(*cv.tolist()), _TOP[dtype]],
+            )
+            if not self._on_cpu:
+                result = out.numpy()
+        return result

@@ -1,0 +1,434 @@
+"""NVIDIA Warp kernels: the parameter block per vertex and per pixel.
+
+Everything here is module-level ``@wp.func`` / ``@wp.kernel`` code, so Warp
+hashes and compiles this module once (per device) and caches the binary on
+disk; the map's values travel in the parameter block, never in the source.
+
+The functions mirror :func:`fpiwarp.params.evaluate` line by line (regions,
+pre-Möbius, core, post-Möbius, stage after stage) and the sampling of
+:mod:`fpiwarp._sampling` (orders 0/1/3, border modes, non-finite positions
+give ``cval``, integer outputs rounded with floor(v + 0.5) and clipped).
+Complex numbers are ``wp.vec2`` (re, im) in float32.
+
+Image kernels are generic in the pixel type and overloaded for uint8,
+uint16 and float32 images of shape (H, W, C), C in 1..4. Thread (y, x)
+writes output pixel (x, y + row0): the host may launch bands of rows (and
+ranges of points, from ``first``) from several threads, since Warp's CPU
+device runs each launch on one thread.
+"""
+
+from typing import Any
+
+import warp as wp
+
+from fpiwarp import params as _p
+
+# Forward evaluation only: no adjoint code, which halves the compile time.
+wp.set_module_options({"enable_backward": False})
+
+STAGE_ROWS = wp.constant(_p.STAGE_ROWS)
+ROW_HEADER = wp.constant(_p.ROW_HEADER)
+ROW_PRE = wp.constant(_p.ROW_PRE)
+ROW_SCALE = wp.constant(_p.ROW_SCALE)
+ROW_POST = wp.constant(_p.ROW_POST)
+ROW_L12 = wp.constant(_p.ROW_L12)
+ROW_L3 = wp.constant(_p.ROW_L3)
+ROW_MU12 = wp.constant(_p.ROW_MU12)
+ROW_MU3 = wp.constant(_p.ROW_MU3)
+ROW_REGIONS = wp.constant(_p.ROW_REGIONS)
+ROW_CENTERS = wp.constant(_p.ROW_CENTERS)
+CORE_AFFINE = wp.constant(_p.CORE_AFFINE)
+CORE_TPS = wp.constant(_p.CORE_TPS)
+
+#: Border modes by index, in the order of :data:`fpiwarp._sampling.MODES`.
+MODE_CONSTANT = wp.constant(0)
+MODE_EDGE = wp.constant(1)
+MODE_REFLECT = wp.constant(2)
+MODE_WRAP = wp.constant(3)
+COORD_LIMIT = wp.constant(float(2**24))  # _sampling.COORD_LIMIT
+
+
+# Accumulators start as ``float(0.0)``: Warp treats a bare literal as a
+# constant that loops and branches may not reassign.
+
+# --- complex arithmetic on vec2 ---------------------------------------------
+
+
+@wp.func
+def cmul(a: wp.vec2, b: wp.vec2):
+    return wp.vec2(a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0])
+
+
+@wp.func
+def cdiv(a: wp.vec2, b: wp.vec2):
+    inv = 1.0 / (b[0] * b[0] + b[1] * b[1])
+    return wp.vec2((a[0] * b[0] + a[1] * b[1]) * inv, (a[1] * b[0] - a[0] * b[1]) * inv)
+
+
+@wp.func
+def conj(a: wp.vec2):
+    return wp.vec2(a[0], -a[1])
+
+
+@wp.func
+def lo(row: wp.vec4):
+    """The complex number in a row's first two floats."""
+    return wp.vec2(row[0], row[1])
+
+
+@wp.func
+def hi(row: wp.vec4):
+    """The complex number in a row's last two floats."""
+    return wp.vec2(row[2], row[3])
+
+
+@wp.func
+def abs2(a: wp.vec2):
+    return a[0] * a[0] + a[1] * a[1]
+
+
+# --- the parameter block (mirrors fpiwarp.params) ---------------------------
+
+
+@wp.func
+def tps_value(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
+    """TPS core value at p: sum_j b_j r² log r + l1 p + l2 conj(p) + l3."""
+    l1 = lo(blk[s0 + ROW_L12])
+    l2 = hi(blk[s0 + ROW_L12])
+    l3 = lo(blk[s0 + ROW_L3])
+    val = cmul(l1, p) + cmul(l2, conj(p)) + l3
+    for j in range(n):
+        row = blk[s0 + ROW_CENTERS + j]
+        d = p - lo(row)
+        r2 = abs2(d)
+        lg = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+        if r2 > 0.0:
+            lg = wp.log(r2)
+        val = val + hi(row) * (0.5 * r2 * lg)
+    return val
+
+
+@wp.func
+def tps_wirtinger(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
+    """TPS core value and its Wirtinger derivatives f_z, f_zbar at p."""
+    l1 = lo(blk[s0 + ROW_L12])
+    l2 = hi(blk[s0 + ROW_L12])
+    l3 = lo(blk[s0 + ROW_L3])
+    val = cmul(l1, p) + cmul(l2, conj(p)) + l3
+    dz = l1
+    dzb = l2
+    for j in range(n):
+        row = blk[s0 + ROW_CENTERS + j]
+        b = hi(row)
+        d = p - lo(row)
+        r2 = abs2(d)
+        lg = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+        if r2 > 0.0:
+            lg = wp.log(r2)
+        val = val + b * (0.5 * r2 * lg)
+        g = b * (0.5 * (lg + 1.0))
+        dz = dz + cmul(g, conj(d))
+        dzb = dzb + cmul(g, d)
+    return val, dz, dzb
+
+
+@wp.func
+def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2):
+    """Solve TPS(x) = target by Newton from the inverse of the R-linear part;
+    NaN when not within newton_tol after ``iters`` steps."""
+    tol = blk[s0 + ROW_L3][2]
+    mu1 = lo(blk[s0 + ROW_MU12])
+    mu2 = hi(blk[s0 + ROW_MU12])
+    mu3 = lo(blk[s0 + ROW_MU3])
+    x = cmul(mu1, target) + cmul(mu2, conj(target)) + mu3
+    nan2 = wp.vec2(wp.nan, wp.nan)
+    for _k in range(iters):
+        val, dz, dzb = tps_wirtinger(blk, s0, n, x)
+        res = val - target
+        if wp.sqrt(abs2(res)) <= tol:
+            return x
+        det = abs2(dz) - abs2(dzb)
+        step = (cmul(conj(dz), res) - cmul(dzb, conj(res))) / det
+        x = x - step
+    if wp.sqrt(abs2(tps_value(blk, s0, n, x) - target)) <= tol:
+        return x
+    return nan2
+
+
+@wp.func
+def evaluate_stage(blk: wp.array(dtype=wp.vec4), s0: int, z: wp.vec2):
+    """One stage starting at block row s0: regions, pre-Möbius, core, post-Möbius."""
+    hdr = blk[s0 + ROW_HEADER]
+    core = int(hdr[0])
+    n = int(hdr[1])
+    n_regions = int(hdr[2])
+    iters = int(hdr[3])
+    best = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+    outside = wp.vec2(wp.nan, wp.nan)
+    for r in range(n_regions):
+        line = blk[s0 + ROW_REGIONS + 2 * r]
+        sim = blk[s0 + ROW_REGIONS + 2 * r + 1]
+        dz = z - lo(line)
+        nrm = hi(line)
+        depth = dz[0] * nrm[0] + dz[1] * nrm[1]
+        if depth > best:
+            best = depth
+            outside = cmul(lo(sim), z) + hi(sim)
+    if best > 0.0:
+        return outside
+    u = z - lo(blk[s0 + ROW_PRE])
+    p = cdiv(cmul(lo(blk[s0 + ROW_SCALE]), u), wp.vec2(1.0, 0.0) - cmul(hi(blk[s0 + ROW_PRE]), u))
+    if core == CORE_AFFINE:
+        p = cmul(lo(blk[s0 + ROW_L12]), p) + cmul(hi(blk[s0 + ROW_L12]), conj(p)) + lo(blk[s0 + ROW_L3])
+    elif core == CORE_TPS:
+        p = tps_value(blk, s0, n, p)
+    else:
+        p = tps_newton(blk, s0, n, iters, p)
+    post = blk[s0 + ROW_POST]
+    return hi(post) + cdiv(cmul(hi(blk[s0 + ROW_SCALE]), p), wp.vec2(1.0, 0.0) - cmul(lo(post), p))
+
+
+@wp.func
+def evaluate(blk: wp.array(dtype=wp.vec4), z: wp.vec2):
+    """The whole block on one point: its stages in order."""
+    n_stages = int(blk[0][0])
+    w = z
+    for k in range(n_stages):
+        w = evaluate_stage(blk, 1 + k * STAGE_ROWS, w)
+    return w
+
+
+@wp.kernel
+def map_points_kernel(
+    blk: wp.array(dtype=wp.vec4), pts: wp.array(dtype=wp.vec2d), out: wp.array(dtype=wp.vec2d), first: int
+):
+    """Per vertex: float64 in and out, float32 inside; thread i maps point first + i."""
+    i = wp.tid() + first
+    p = pts[i]
+    w = evaluate(blk, wp.vec2(wp.float32(p[0]), wp.float32(p[1])))
+    out[i] = wp.vec2d(wp.float64(w[0]), wp.float64(w[1]))
+
+
+# --- sampling (mirrors fpiwarp._sampling) -----------------------------------
+
+
+@wp.func
+def border_index(i: int, n: int, mode: int):
+    """A tap's integer index made valid for ``mode``; constant mode clamps
+    (its outside taps are replaced by cval through ``inside``)."""
+    if mode == MODE_WRAP:
+        m = i % n
+        if m < 0:
+            m = m + n
+        return m
+    if mode == MODE_REFLECT:
+        if n == 1:
+            return 0
+        period = 2 * (n - 1)
+        m = i % period
+        if m < 0:
+            m = m + period
+        if m >= n:
+            m = period - m
+        return m
+    return wp.clamp(i, 0, n - 1)
+
+
+@wp.func
+def inside(i: int, n: int, mode: int):
+    """Whether a tap reads the image: always, except outside it in constant mode."""
+    return mode != MODE_CONSTANT or (i >= 0 and i < n)
+
+
+@wp.func
+def tap(value: float, cval: float, is_inside: bool):
+    """A tap's value: the pixel, or cval for a constant-mode tap outside."""
+    if is_inside:
+        return value
+    return cval
+
+
+@wp.func
+def cubic_weights(t: float):
+    """Keys' cubic convolution weights (a = -0.5) for offsets -1, 0, 1, 2."""
+    t2 = t * t
+    t3 = t2 * t
+    return wp.vec4(
+        -0.5 * t3 + t2 - 0.5 * t,
+        1.5 * t3 - 2.5 * t2 + 1.0,
+        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+        0.5 * t3 - 0.5 * t2,
+    )
+
+
+@wp.func
+def source_position(blk: wp.array(dtype=wp.vec4), x: int, y: int):
+    """Where output pixel (x, y) samples the source (block = the inverse map)."""
+    return evaluate(blk, wp.vec2(float(x), float(y)))
+
+
+@wp.func
+def in_range(s: wp.vec2):
+    """False for positions that are non-finite or beyond COORD_LIMIT: cval."""
+    return wp.isfinite(s) and wp.abs(s[0]) <= COORD_LIMIT and wp.abs(s[1]) <= COORD_LIMIT
+
+
+@wp.func
+def clip_coord(v: float):
+    return wp.clamp(v, -COORD_LIMIT, COORD_LIMIT)
+
+
+@wp.func
+def store(out: wp.array3d(dtype=Any), y: int, x: int, c: int, v: float, top: float):
+    """Write one value: integer images (top > 0) round floor(v + 0.5) and clip."""
+    if top > 0.0:
+        v = wp.clamp(wp.floor(v + 0.5), 0.0, top)
+    out[y, x, c] = out.dtype(v)
+
+
+@wp.func
+def store_cval(out: wp.array3d(dtype=Any), y: int, x: int, cval: wp.vec4, top: float):
+    for c in range(out.shape[2]):
+        store(out, y, x, c, cval[c], top)
+
+
+@wp.kernel
+def warp_nearest(
+    blk: wp.array(dtype=wp.vec4),
+    img: wp.array3d(dtype=Any),
+    out: wp.array3d(dtype=Any),
+    mode: int,
+    cval: wp.vec4,
+    top: float,
+    row0: int,
+):
+    """Order 0: the pixel at floor(x + 0.5), floor(y + 0.5)."""
+    y, x = wp.tid()
+    y = y + row0
+    s = source_position(blk, x, y)
+    if not in_range(s):
+        store_cval(out, y, x, cval, top)
+        return
+    h = img.shape[0]
+    w = img.shape[1]
+    ix = int(wp.floor(clip_coord(s[0]) + 0.5))
+    iy = int(wp.floor(clip_coord(s[1]) + 0.5))
+    ok = inside(ix, w, mode) and inside(iy, h, mode)
+    col = border_index(ix, w, mode)
+    row = border_index(iy, h, mode)
+    for c in range(img.shape[2]):
+        store(out, y, x, c, tap(float(img[row, col, c]), cval[c], ok), top)
+
+
+@wp.kernel
+def warp_linear(
+    blk: wp.array(dtype=wp.vec4),
+    img: wp.array3d(dtype=Any),
+    out: wp.array3d(dtype=Any),
+    mode: int,
+    cval: wp.vec4,
+    top: float,
+    row0: int,
+):
+    """Order 1: bilinear over the four surrounding pixels, weights in software."""
+    y, x = wp.tid()
+    y = y + row0
+    s = source_position(blk, x, y)
+    if not in_range(s):
+        store_cval(out, y, x, cval, top)
+        return
+    h = img.shape[0]
+    w = img.shape[1]
+    sx = clip_coord(s[0])
+    sy = clip_coord(s[1])
+    fx = wp.floor(sx)
+    fy = wp.floor(sy)
+    tx = sx - fx
+    ty = sy - fy
+    x0 = int(fx)
+    y0 = int(fy)
+    c0 = border_index(x0, w, mode)
+    c1 = border_index(x0 + 1, w, mode)
+    r0 = border_index(y0, h, mode)
+    r1 = border_index(y0 + 1, h, mode)
+    if mode == MODE_CONSTANT:
+        in_x0 = inside(x0, w, mode)
+        in_x1 = inside(x0 + 1, w, mode)
+        in_y0 = inside(y0, h, mode)
+        in_y1 = inside(y0 + 1, h, mode)
+        for c in range(img.shape[2]):
+            cv = cval[c]
+            v00 = tap(float(img[r0, c0, c]), cv, in_y0 and in_x0)
+            v01 = tap(float(img[r0, c1, c]), cv, in_y0 and in_x1)
+            v10 = tap(float(img[r1, c0, c]), cv, in_y1 and in_x0)
+            v11 = tap(float(img[r1, c1, c]), cv, in_y1 and in_x1)
+            v = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
+            store(out, y, x, c, v, top)
+    else:
+        for c in range(img.shape[2]):
+            v00 = float(img[r0, c0, c])
+            v01 = float(img[r0, c1, c])
+            v10 = float(img[r1, c0, c])
+            v11 = float(img[r1, c1, c])
+            v = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
+            store(out, y, x, c, v, top)
+
+
+@wp.kernel
+def warp_cubic(
+    blk: wp.array(dtype=wp.vec4),
+    img: wp.array3d(dtype=Any),
+    out: wp.array3d(dtype=Any),
+    mode: int,
+    cval: wp.vec4,
+    top: float,
+    row0: int,
+):
+    """Order 3: Keys' cubic convolution over 4×4 pixels."""
+    y, x = wp.tid()
+    y = y + row0
+    s = source_position(blk, x, y)
+    if not in_range(s):
+        store_cval(out, y, x, cval, top)
+        return
+    h = img.shape[0]
+    w = img.shape[1]
+    sx = clip_coord(s[0])
+    sy = clip_coord(s[1])
+    fx = wp.floor(sx)
+    fy = wp.floor(sy)
+    wx = cubic_weights(sx - fx)
+    wy = cubic_weights(sy - fy)
+    x0 = int(fx) - 1
+    y0 = int(fy) - 1
+    cols = wp.vec4i(
+        border_index(x0, w, mode),
+        border_index(x0 + 1, w, mode),
+        border_index(x0 + 2, w, mode),
+        border_index(x0 + 3, w, mode),
+    )
+    rows = wp.vec4i(
+        border_index(y0, h, mode),
+        border_index(y0 + 1, h, mode),
+        border_index(y0 + 2, h, mode),
+        border_index(y0 + 3, h, mode),
+    )
+    for c in range(img.shape[2]):
+        cv = cval[c]
+        v = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+        for j in range(4):
+            acc = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+            for i in range(4):
+                ok = inside(y0 + j, h, mode) and inside(x0 + i, w, mode)
+                acc = acc + wx[i] * tap(float(img[rows[j], cols[i], c]), cv, ok)
+            v = v + wy[j] * acc
+        store(out, y, x, c, v, top)
+
+
+#: The image kernels by interpolation order.
+IMAGE_KERNELS = {0: warp_nearest, 1: warp_linear, 3: warp_cubic}
+
+for _kernel in IMAGE_KERNELS.values():
+    for _dtype in (wp.uint8, wp.uint16, wp.float32):
+        wp.overload(_kernel, {"img": wp.array3d(dtype=_dtype), "out": wp.array3d(dtype=_dtype)})
+del _kernel, _dtype

@@ -1,0 +1,445 @@
+"""The Warp backend against the numpy reference, on every Warp device here.
+
+map_points: within 1e-5 relative of the float64 reference away from the
+pole. warp_image: within one uint8 level (257 for uint16, 1/255 for float32
+images in [0, 1]) of the numpy backend on at least 99.8% of pixels.
+"""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from strategies import quads
+
+import fpiwarp
+from fpiwarp import FPI, Mobius, RLinear, Transform
+from fpiwarp.backends import numpy_backend
+from fpiwarp.params import CORE_TPS, CORE_TPS_INVERSE, Region, Stage, evaluate
+
+RTOL = 1e-5
+PIXEL_FRACTION = 0.998
+MODES = ["constant", "edge", "reflect", "wrap"]
+ORDERS = [0, 1, 3]
+DTYPES = [np.uint8, np.uint16, np.float32]
+LEVEL = {np.uint8: 1.0, np.uint16: 257.0, np.float32: 1.0 / 255}
+
+_backends = {}
+
+
+def _devices():
+    """Warp devices to test: the CPU, and the first CUDA device where present."""
+    from fpiwarp.backends.warp_backend import probe
+
+    if probe() is not None:
+        return ["cpu"]
+    import warp
+
+    return ["cpu"] + (["cuda:0"] if warp.get_cuda_device_count() > 0 else [])
+
+
+@pytest.fixture(params=_devices())
+def warp(request, warp_backend):
+    """A Warp backend object on each device (skips, or fails when required)."""
+    from fpiwarp.backends.warp_backend import Backend
+
+    if request.param not in _backends:
+        _backends[request.param] = Backend(device=request.param)
+    return _backends[request.param]
+
+
+class Staged(Transform):
+    """A map given directly by parameter-block stages, evaluated by the
+    float64 reference; ``inverse_stages`` give its inverse for warp_image."""
+
+    def __init__(self, stages, inverse_stages=None):
+        self._stages = list(stages)
+        self._inverse_stages = inverse_stages
+
+    def stages(self):
+        return list(self._stages)
+
+    def _map(self, z):
+        out = evaluate(self.params(), np.stack([z.real, z.imag], axis=-1), np.float64)
+        return out[..., 0] + 1j * out[..., 1]
+
+    @property
+    def inverse(self):
+        return Staged(self._inverse_stages, self._stages)
+
+
+# A mild thin-plate spline on a 64×48 frame, its Newton inverse, and regions.
+_CENTERS = np.array([10 + 8j, 50 + 10j, 30 + 25j, 12 + 40j, 55 + 42j, 32 + 5j])
+_WEIGHTS = np.array([3e-4 + 1e-4j, -2e-4 + 2e-4j, 1e-4 - 3e-4j, -3e-4 - 1e-4j, 2e-4, 1e-4j])
+_LAM = (1.02 + 0.01j, 0.03 - 0.02j, 1.5 - 0.5j)
+
+
+def tps_stage():
+    return Stage(lam=_LAM, core=CORE_TPS, centers=_CENTERS, weights=_WEIGHTS)
+
+
+def tps_inverse_stage(iters=20, tol=1e-4):
+    return Stage(
+        lam=_LAM, core=CORE_TPS_INVERSE, centers=_CENTERS, weights=_WEIGHTS, newton_iters=iters, newton_tol=tol
+    )
+
+
+_REGIONS = (
+    Region(origin=52 + 0j, normal=1 + 0j, a=1 + 0j, b=2 + 1j),  # x > 52: shift
+    Region(origin=0 + 6j, normal=-1j, a=0.9 + 0.1j, b=1 - 2j),  # y < 6: similarity
+)
+
+
+def region_stage():
+    return Stage(lam=(1.01 + 0.02j, 0.02j, 0.5 + 0.25j), regions=_REGIONS)
+
+
+def region_inverse_stage():
+    inv = RLinear(1.01 + 0.02j, 0.02j, 0.5 + 0.25j).inverse
+    regions = tuple(Region(r.a * r.origin + r.b, r.a * r.normal, 1 / r.a, -r.b / r.a) for r in _REGIONS)
+    return Stage(lam=(inv.l1, inv.l2, inv.l3), regions=regions)
+
+
+def tps_map():
+    return Staged([tps_stage()], [tps_inverse_stage()])
+
+
+def region_map():
+    return Staged([region_stage()], [region_inverse_stage()])
+
+
+def sample_fpi():
+    return FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [60, -2], [66, 50], [-3, 44]])
+
+
+def frame_points(rng, n=4000, margin=10.0):
+    return rng.uniform([-margin, -margin], [64 + margin, 48 + margin], size=(n, 2))
+
+
+def assert_close_relative(got, want, rtol=RTOL, atol=0.0):
+    """|got - want| <= rtol * max(|want|, 1) + atol per point (vector norms)."""
+    assert got.shape == want.shape and got.dtype == np.float64
+    err = np.linalg.norm(got - want, axis=-1)
+    scale = np.maximum(np.linalg.norm(want, axis=-1), 1.0)
+    worst = np.max((err - atol) / scale)
+    assert worst <= rtol, f"relative error {worst:.3g} > {rtol} (beyond atol {atol})"
+
+
+def newton_atol(transform):
+    """A Newton inverse is only defined to its tolerance: the reference stops
+    once the residual is <= newton_tol, the device may take one step more.
+    Residual to position: the TPS here has |f_z| - |f_zbar| >= 0.9."""
+    tols = [st.newton_tol for st in transform.stages() if st.core == CORE_TPS_INVERSE]
+    return max(tols, default=0.0) / 0.9
+
+
+# --- map_points -------------------------------------------------------------
+
+
+MAPS = {
+    "fpi": sample_fpi,
+    "mobius": lambda: Mobius(2 + 1j, 3 - 1j, 0.004 + 0.006j, 1),  # pole near (-77, 115)
+    "rlinear": lambda: RLinear(1.2 + 0.3j, 0.1 - 0.2j, 5 + 7j),
+    "compound": lambda: RLinear(0.9, 0.05j, 2) @ sample_fpi() @ Mobius(1 + 0.1j, 2, 0.001j, 1),
+    "tps": tps_map,
+    "tps_inverse": lambda: tps_map().inverse,
+    "compound_of_stages": lambda: Staged([tps_stage(), *sample_fpi().stages(), tps_inverse_stage()]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(MAPS))
+def test_map_points_matches_float64_reference(warp, name, rng):
+    transform = MAPS[name]()
+    pts = frame_points(rng)
+    want = evaluate(transform.params(), pts, np.float64)
+    assert np.all(np.isfinite(want))
+    assert_close_relative(warp.map_points(transform, pts), want, atol=newton_atol(transform))
+    if not isinstance(transform, Staged):  # and the map's own float64 formulas
+        assert_close_relative(warp.map_points(transform, pts), transform(pts))
+
+
+def test_map_points_regions_match_reference_away_from_their_lines(warp, rng):
+    transform = region_map()
+    pts = frame_points(rng)
+    far = (np.abs(pts[:, 0] - 52) > 1e-3) & (np.abs(pts[:, 1] - 6) > 1e-3)
+    want = evaluate(transform.params(), pts[far], np.float64)
+    assert_close_relative(warp.map_points(transform, pts[far]), want)
+    moved = warp.map_points(transform, np.array([[60.0, 20.0], [30.0, 2.0]]))
+    assert_close_relative(moved, np.array([[62.0, 21.0], [0.9 * 30 - 0.1 * 2 + 1, 0.1 * 30 + 0.9 * 2 - 2]]))
+
+
+def _constrained_maps():
+    """The §4 maps, where this version of fpiwarp has them."""
+    cfpi, local = getattr(fpiwarp, "ConstrainedFPI", None), getattr(fpiwarp, "LocalDeformation", None)
+    if cfpi is None or local is None:
+        pytest.skip("ConstrainedFPI / LocalDeformation not in this version")
+    src = [[0, 0], [63, 0], [63, 47], [0, 47]]
+    return [
+        cfpi(src, [[4, 3], [60, -2], [66, 50], [-3, 44]], edges=(0, 2)),
+        local(src, [[4, 3], [60, -2], [66, 50], [-3, 44]], edges=(3, 1)),
+        local(src, [[0, 0], [63, 0], [68, 52], [0, 47]], edges=(3, 0)),
+    ]
+
+
+def test_map_points_of_constrained_maps(warp, rng):
+    """Their spline lives in parallelogram coordinates (unit size), so float32
+    rounding is a fraction of the quad's size rather than of |w|: the error
+    is measured relative to max(|w|, quad size). Inverses (Newton) are only
+    defined to newton_tol in those coordinates, i.e. to about newton_tol
+    times the quad size in pixels."""
+    pts = frame_points(rng, 2000)
+    size = 64.0
+    for transform in _constrained_maps():
+        for t in (transform, transform.inverse):
+            want = evaluate(t.params(), pts, np.float64)
+            got = warp.map_points(t, pts)
+            err = np.linalg.norm(got - want, axis=-1) - 2 * size * newton_atol(t)
+            assert np.max(err / np.maximum(np.linalg.norm(want, axis=-1), size)) <= RTOL, repr(t)
+
+
+def test_newton_inverse_undoes_the_tps(warp, rng):
+    pts = frame_points(rng, 1000, margin=0)
+    forward = warp.map_points(tps_map(), pts)
+    assert_close_relative(warp.map_points(tps_map().inverse, forward), pts, rtol=3e-5)
+
+
+def test_newton_not_converged_gives_nan(warp, rng):
+    transform = Staged([tps_inverse_stage(iters=1, tol=0.0)])
+    out = warp.map_points(transform, frame_points(rng, 100))
+    assert np.all(np.isnan(out))
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    src=quads(min_scale=1, max_scale=1e3, convex=True),
+    dst=quads(min_scale=1, max_scale=1e3, convex=True),
+    seed=st.integers(0, 2**31),
+)
+def test_fpi_points_inside_the_quad_match_reference(src, dst, seed):
+    """Random FPIs: points inside the (convex) source quad, far from the pole."""
+    from strategies import orient_like
+
+    from fpiwarp.backends.warp_backend import Backend, probe
+
+    if probe() is not None:
+        pytest.skip(probe())
+    if "cpu" not in _backends:
+        _backends["cpu"] = Backend(device="cpu")
+    transform = FPI(src, orient_like(dst, src))
+    weights = np.random.default_rng(seed).dirichlet(np.ones(4), size=200)
+    pts = weights @ src
+    want = evaluate(transform.params(), pts, np.float64)
+    got = _backends["cpu"].map_points(transform, pts)
+    err = np.linalg.norm(got - want, axis=-1)
+    scale = np.maximum(np.linalg.norm(want, axis=-1), np.abs(dst).max())
+    assert np.max(err / scale) <= RTOL
+
+
+def test_map_points_keeps_shape_and_accepts_odd_layouts(warp, rng):
+    transform = sample_fpi()
+    pts = frame_points(rng, 30).reshape(3, 5, 2, 2)[:, :, 0]  # not contiguous
+    got = warp.map_points(transform, pts)
+    assert got.shape == (3, 5, 2)
+    assert_close_relative(got, transform(pts))
+    assert warp.map_points(transform, np.zeros((0, 2))).shape == (0, 2)
+    assert fpiwarp.map_points(transform, [[1, 2]], backend="warp").shape == (1, 2)
+
+
+# --- warp_image ---------------------------------------------------------------
+
+
+def make_image(shape, dtype, seed=0):
+    rng = np.random.default_rng(seed)
+    if np.dtype(dtype).kind == "f":
+        return rng.random(shape).astype(dtype)
+    return rng.integers(0, np.iinfo(dtype).max, size=shape, endpoint=True).astype(dtype)
+
+
+def assert_images_agree(got, want, dtype):
+    assert got.dtype == want.dtype and got.shape == want.shape
+    diff = np.abs(got.astype(np.float64) - want.astype(np.float64))
+    ok = np.all(diff <= LEVEL[dtype] * (1 + 1e-6), axis=-1)
+    assert ok.mean() >= PIXEL_FRACTION, f"only {ok.mean():.4%} of pixels within one level"
+
+
+def compare_warp(warp, img, transform, shape, order, mode, cval):
+    cv = np.broadcast_to(np.asarray(cval, dtype=np.float64), (img.shape[2],)).copy()
+    want = numpy_backend.Backend().warp_image(img, transform, shape, order=order, mode=mode, cval=cv)
+    got = warp.warp_image(img, transform, shape, order=order, mode=mode, cval=cv)
+    assert_images_agree(got, want, img.dtype.type)
+    return got, want
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("order", ORDERS)
+def test_warp_image_matches_numpy_backend(warp, order, mode, dtype):
+    transform = sample_fpi()
+    for channels in (1, 2, 3, 4):
+        img = make_image((48, 64, channels), dtype, seed=channels)
+        cval = np.linspace(0.1, 0.9, channels) * (1 if dtype is np.float32 else np.iinfo(dtype).max)
+        compare_warp(warp, img, transform, (52, 70), order, mode, cval)
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@pytest.mark.parametrize("name", ["tps", "region", "compound", "constrained", "local"])
+def test_warp_image_of_tps_regions_and_compounds(warp, name, order):
+    maps = {
+        "tps": tps_map,
+        "region": region_map,
+        "compound": MAPS["compound"],
+        "constrained": lambda: _constrained_maps()[0],
+        "local": lambda: _constrained_maps()[1],
+    }
+    transform = maps[name]()
+    img = make_image((48, 64, 3), np.uint8, seed=5)
+    for mode in MODES:
+        compare_warp(warp, img, transform, (48, 64), order, mode, [10, 20, 30])
+
+
+@pytest.mark.parametrize("shape", [(1, 1, 2), (1, 9, 1), (7, 1, 3)])
+def test_tiny_images_in_every_mode(warp, shape):
+    """One-pixel-wide images: reflect has period 0 there, wrap and edge repeat."""
+    img = make_image(shape, np.uint8, seed=3)
+    for order in ORDERS:
+        for mode in MODES:
+            compare_warp(warp, img, MAPS["compound"](), (6, 8), order, mode, 17)
+
+
+def test_non_finite_positions_give_cval_in_every_mode(warp):
+    """A Newton inverse that cannot converge (no steps, zero tolerance) sends
+    every pixel outside: the output is cval everywhere, whatever the mode."""
+    transform = Staged([tps_stage()], [tps_inverse_stage(iters=0, tol=0.0)])
+    img = make_image((20, 30, 4), np.uint8)
+    for order in ORDERS:
+        for mode in MODES:
+            out = warp.warp_image(img, transform, (20, 30), order=order, mode=mode, cval=np.array([1.0, 2, 3, 254.6]))
+            assert np.all(out == np.array([1, 2, 3, 255], np.uint8))
+
+
+def test_pole_inside_the_output_is_handled_like_the_reference(warp):
+    """Positions near the pole are huge or non-finite: clipped, never a crash.
+    The output pixel (10, 20) samples the source at the pole of z / (0.05 z + 1)."""
+    transform = RLinear(1, 0, 30 + 20j) @ Mobius(1, 0, 0.05, 1, center=0).inverse
+    img = make_image((40, 60, 3), np.uint8)
+    for mode in MODES:
+        compare_warp(warp, img, transform, (40, 60), 1, mode, [5, 6, 7])
+
+
+def test_integer_rounding_and_clipping(warp):
+    """Cubic overshoot clips to the dtype range; float32 is neither rounded nor clipped."""
+    img = np.zeros((8, 8, 1), np.float32)
+    img[:, 4:] = 1.0
+    shift = RLinear(1, 0, 0.3)
+    got_f = warp.warp_image(img, shift, (8, 8), order=3, mode="edge", cval=np.zeros(1))
+    assert got_f.min() < 0 and got_f.max() > 1
+    for dtype in (np.uint8, np.uint16):
+        top = np.iinfo(dtype).max
+        got = warp.warp_image((img * top).astype(dtype), shift, (8, 8), order=3, mode="edge", cval=np.zeros(1))
+        assert got.min() == 0 and got.max() == top
+        want = np.clip(np.floor(got_f.astype(np.float64) * top + 0.5), 0, top)
+        assert np.abs(got.astype(np.float64) - want).max() <= 1
+
+
+def test_public_api_with_2d_image(warp_backend):
+    img = make_image((48, 64), np.uint8)
+    got = fpiwarp.warp_image(img, sample_fpi(), backend=warp_backend)
+    want = fpiwarp.warp_image(img, sample_fpi())
+    assert got.shape == (48, 64)
+    assert_images_agree(got[..., None], want[..., None], np.uint8)
+
+
+# --- compile once, device choice ---------------------------------------------
+
+
+def test_new_values_do_not_recompile(warp, rng):
+    from fpiwarp.kernels import warp_map
+
+    module = warp_map.map_points_kernel.module
+    if not hasattr(module, "execs"):
+        pytest.skip("this Warp version does not expose module.execs")
+    img = make_image((16, 16, 3), np.uint8)
+    warp.map_points(sample_fpi(), frame_points(rng, 10))
+    warp.warp_image(img, sample_fpi(), (16, 16), order=1, mode="edge", cval=np.zeros(3))
+    loaded = dict(module.execs)
+    for transform in (MAPS["mobius"](), tps_map(), MAPS["compound"]()):
+        warp.map_points(transform, frame_points(rng, 10))
+        for order in ORDERS:
+            for dtype in DTYPES:
+                img = make_image((12, 9, 2), dtype)
+                warp.warp_image(img, transform, (7, 11), order=order, mode="wrap", cval=np.zeros(2))
+    assert module.execs == loaded
+
+
+def test_unknown_device_is_a_clear_error(warp_backend, monkeypatch):
+    from fpiwarp.backends import warp_backend as wb
+
+    with pytest.raises(ValueError, match="cuda:97.*not available"):
+        wb.Backend(device="cuda:97")
+    monkeypatch.setenv(wb.DEVICE_ENV, "cuda:97")
+    assert wb.DEVICE_ENV in wb.probe()
+    monkeypatch.setenv(wb.DEVICE_ENV, "cpu")
+    assert wb.probe() is None
+    assert str(wb.Backend().device) == "cpu"
+
+
+def test_cpu_bands_over_threads_give_the_same_result(warp_backend, monkeypatch, rng):
+    """Splitting a CPU call into bands of rows (points) changes nothing."""
+    from fpiwarp.backends import warp_backend as wb
+
+    single, pooled = wb.Backend(device="cpu", threads=1), wb.Backend(device="cpu", threads=3)
+    monkeypatch.setattr(wb, "MIN_ITEMS_PER_THREAD", 7)
+    transform = sample_fpi()
+    img = make_image((23, 31, 3), np.uint16)
+    for order in ORDERS:
+        args = {"order": order, "mode": "reflect", "cval": np.zeros(3)}
+        assert np.array_equal(
+            single.warp_image(img, transform, (29, 37), **args), pooled.warp_image(img, transform, (29, 37), **args)
+        )
+    pts = frame_points(rng, 101)
+    assert np.array_equal(single.map_points(transform, pts), pooled.map_points(transform, pts))
+
+
+def test_thread_count_is_validated(warp_backend, monkeypatch):
+    from fpiwarp.backends import warp_backend as wb
+
+    with pytest.raises(ValueError, match="threads must be a positive integer"):
+        wb.Backend(device="cpu", threads=0)
+    monkeypatch.setenv(wb.THREADS_ENV, "many")
+    with pytest.raises(ValueError, match=wb.THREADS_ENV):
+        wb.Backend(device="cpu")
+    assert wb.THREADS_ENV in wb.probe()
+    monkeypatch.setenv(wb.THREADS_ENV, "2")
+    assert wb.Backend(device="cpu").threads == 2
+
+
+def test_probe_names_the_missing_package(monkeypatch):
+    import sys
+
+    from fpiwarp.backends import warp_backend as wb
+
+    monkeypatch.setitem(sys.modules, "warp", None)  # import warp now raises ImportError
+    assert "warp-lang" in wb.probe()
+
+
+def test_copy_path_reuses_buffers(warp_backend, rng):
+    """The path CUDA takes (upload into kept buffers, copy back), run on CPU
+    memory so that machines without a GPU test it too."""
+    import warp as wp_
+
+    from fpiwarp.backends import warp_backend as wb
+
+    backend = wb.Backend(device="cpu", threads=1)
+    backend._on_cpu = False  # force the copy path
+    backend._block = wp_.zeros_like(backend._block)
+    transform = sample_fpi()
+    img = make_image((48, 64, 3), np.uint8)
+    cv = np.zeros(3)
+    want = numpy_backend.Backend().warp_image(img, transform, (40, 50), order=1, mode="edge", cval=cv)
+    assert_images_agree(backend.warp_image(img, transform, (40, 50), order=1, mode="edge", cval=cv), want, np.uint8)
+    kept = dict(backend._buffers)
+    backend.warp_image(img, MAPS["mobius"](), (40, 50), order=1, mode="edge", cval=cv)
+    assert all(backend._buffers[k] is v for k, v in kept.items())
+    pts = frame_points(rng, 50)
+    assert_close_relative(backend.map_points(transform, pts), transform(pts))
+    backend.map_points(transform, pts[:20])  # a new shape: new buffers
+    assert backend._buffers["points"].shape == (20,)
