@@ -1,0 +1,22 @@
+#version 330
+// Per-pixel backward warp: each fragment evaluates the parameter block (the
+// INVERSE of the user's map) at its own output position and samples the
+// source there.
+#include "fpiwarp_map.glsl"
+
+// Output position of a fragment, in fpiwarp's pixel convention (centers at
+// integers, x = column, y = row): view.xy + view.zw * (gl_FragCoord.xy - 0.5).
+// gl_FragCoord is at the pixel center (i + 0.5, j + 0.5): the -0.5 puts the
+// center on an integer. With view = (x0, y0, 1, 1) window row j is output
+// row y0 + j, so glReadPixels (bottom row first) returns rows top-down in
+// image order; a viewer drawing to a y-up screen passes a negative view.w.
+uniform vec4 fpw_view;
+
+void main() {
+    vec2 xy = fpw_view.xy + fpw_view.zw * (gl_FragCoord.xy - 0.5);
+#ifdef FPW_FILL
+    fpw_emit(fpw_cval);
+#else
+    fpw_emit(fpw_sample(fpw_map(xy)));
+#endif
+}

@@ -1,0 +1,458 @@
+"""The GL backend (moderngl, headless EGL) against the numpy reference.
+
+map_points: within 1e-5 relative of the float64 reference away from the
+pole. warp_image: within one uint8 level (257 for uint16, 1/255 for float32
+images in [0, 1]) of the numpy backend on at least 99.8% of pixels. The GL
+error state is checked before and after every test that draws.
+"""
+
+import numpy as np
+import pytest
+
+import fpiwarp
+from fpiwarp import FPI, Mobius, RLinear, Transform
+from fpiwarp.backends import numpy_backend
+from fpiwarp.params import CORE_TPS, CORE_TPS_INVERSE, Region, Stage, evaluate
+
+RTOL = 1e-5
+PIXEL_FRACTION = 0.998
+MODES = ["constant", "edge", "reflect", "wrap"]
+ORDERS = [0, 1, 3]
+DTYPES = [np.uint8, np.uint16, np.float32]
+LEVEL = {np.uint8: 1.0, np.uint16: 257.0, np.float32: 1.0 / 255}
+
+_small = {}
+
+
+def _check_gl(ctx):
+    assert ctx.error == "GL_NO_ERROR"
+
+
+@pytest.fixture
+def gl(gl_backend):
+    """The registry's "gl" backend object; GL errors fail the test."""
+    from fpiwarp.backends import get_backend
+
+    backend = get_backend(gl_backend)
+    _check_gl(backend.ctx)
+    yield backend
+    _check_gl(backend.ctx)
+
+
+@pytest.fixture
+def gl_small(gl):
+    """A GL backend limited to 16-pixel textures: every image here is tiled."""
+    from fpiwarp.backends.gl_backend import Backend
+
+    if "b" not in _small:
+        _small["b"] = Backend(max_texture_size=16)
+    return _small["b"]
+
+
+class Staged(Transform):
+    """A map given directly by parameter-block stages, evaluated by the
+    float64 reference; ``inverse_stages`` give its inverse for warp_image."""
+
+    def __init__(self, stages, inverse_stages=None):
+        self._stages = list(stages)
+        self._inverse_stages = inverse_stages
+
+    def stages(self):
+        return list(self._stages)
+
+    def _map(self, z):
+        out = evaluate(self.params(), np.stack([z.real, z.imag], axis=-1), np.float64)
+        return out[..., 0] + 1j * out[..., 1]
+
+    @property
+    def inverse(self):
+        return Staged(self._inverse_stages, self._stages)
+
+
+# A mild thin-plate spline on a 64×48 frame, its Newton inverse, and regions.
+_CENTERS = np.array([10 + 8j, 50 + 10j, 30 + 25j, 12 + 40j, 55 + 42j, 32 + 5j])
+_WEIGHTS = np.array([3e-4 + 1e-4j, -2e-4 + 2e-4j, 1e-4 - 3e-4j, -3e-4 - 1e-4j, 2e-4, 1e-4j])
+_LAM = (1.02 + 0.01j, 0.03 - 0.02j, 1.5 - 0.5j)
+_REGIONS = (
+    Region(origin=52 + 0j, normal=1 + 0j, a=1 + 0j, b=2 + 1j),  # x > 52: shift
+    Region(origin=0 + 6j, normal=-1j, a=0.9 + 0.1j, b=1 - 2j),  # y < 6: similarity
+)
+
+
+def tps_stage():
+    return Stage(lam=_LAM, core=CORE_TPS, centers=_CENTERS, weights=_WEIGHTS)
+
+
+def tps_inverse_stage(iters=20, tol=1e-4):
+    return Stage(lam=_LAM, core=CORE_TPS_INVERSE, centers=_CENTERS, weights=_WEIGHTS,
+                 newton_iters=iters, newton_tol=tol)
+
+
+def region_stage():
+    return Stage(lam=(1.01 + 0.02j, 0.02j, 0.5 + 0.25j), regions=_REGIONS)
+
+
+def region_inverse_stage():
+    inv = RLinear(1.01 + 0.02j, 0.02j, 0.5 + 0.25j).inverse
+    regions = tuple(Region(r.a * r.origin + r.b, r.a * r.normal, 1 / r.a, -r.b / r.a) for r in _REGIONS)
+    return Stage(lam=(inv.l1, inv.l2, inv.l3), regions=regions)
+
+
+def tps_map():
+    return Staged([tps_stage()], [tps_inverse_stage()])
+
+
+def region_map():
+    return Staged([region_stage()], [region_inverse_stage()])
+
+
+def sample_fpi():
+    return FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [60, -2], [66, 50], [-3, 44]])
+
+
+def frame_points(rng, n=4000, margin=10.0):
+    return rng.uniform([-margin, -margin], [64 + margin, 48 + margin], size=(n, 2))
+
+
+def assert_close_relative(got, want, rtol=RTOL, atol=0.0):
+    """|got - want| <= rtol * max(|want|, 1) + atol per point (vector norms)."""
+    assert got.shape == want.shape and got.dtype == np.float64
+    err = np.linalg.norm(got - want, axis=-1)
+    scale = np.maximum(np.linalg.norm(want, axis=-1), 1.0)
+    worst = np.max((err - atol) / scale)
+    assert worst <= rtol, f"relative error {worst:.3g} > {rtol} (beyond atol {atol})"
+
+
+def newton_atol(transform):
+    """A Newton inverse is defined to its tolerance only: the reference stops
+    once the residual is <= newton_tol, float32 may take one step more.
+    Residual to position: this TPS has |f_z| - |f_zbar| >= 0.9."""
+    tols = [st.newton_tol for st in transform.stages() if st.core == CORE_TPS_INVERSE]
+    return max(tols, default=0.0) / 0.9
+
+
+MAPS = {
+    "fpi": sample_fpi,
+    "mobius": lambda: Mobius(2 + 1j, 3 - 1j, 0.004 + 0.006j, 1),  # pole near (-77, 115)
+    "rlinear": lambda: RLinear(1.2 + 0.3j, 0.1 - 0.2j, 5 + 7j),
+    "compound": lambda: RLinear(0.9, 0.05j, 2) @ sample_fpi() @ Mobius(1 + 0.1j, 2, 0.001j, 1),
+    "tps": tps_map,
+    "tps_inverse": lambda: tps_map().inverse,
+    "compound_of_stages": lambda: Staged([tps_stage(), *sample_fpi().stages(), tps_inverse_stage()]),
+}
+
+
+# --- map_points (transform feedback) -------------------------------------------
+
+
+@pytest.mark.parametrize("specialize", [True, False], ids=["per-kind", "generic"])
+def test_map_points_matches_float64_reference(gl, specialize, rng):
+    """Both the programs specialized per kind of map and the one generic
+    program (kind read from the block) mirror ``evaluate``."""
+    from fpiwarp.backends.gl_backend import GLWarper
+
+    warper = gl.warper if specialize else GLWarper(gl.ctx, specialize=False)
+    for name, make in sorted(MAPS.items()):
+        transform = make()
+        pts = frame_points(rng)
+        want = evaluate(transform.params(), pts, np.float64)
+        assert np.all(np.isfinite(want)), name
+        assert_close_relative(warper.map_points(transform, pts), want, atol=newton_atol(transform))
+        if not isinstance(transform, Staged):  # and the map's own float64 formulas
+            assert_close_relative(warper.map_points(transform, pts), transform(pts))
+    if not specialize:
+        assert warper.compile_count == 1
+        warper.release()
+
+
+def test_map_points_regions_match_reference_away_from_their_lines(gl, rng):
+    transform = region_map()
+    pts = frame_points(rng)
+    far = (np.abs(pts[:, 0] - 52) > 1e-3) & (np.abs(pts[:, 1] - 6) > 1e-3)
+    want = evaluate(transform.params(), pts[far], np.float64)
+    assert_close_relative(gl.map_points(transform, pts[far]), want)
+    moved = gl.map_points(transform, np.array([[60.0, 20.0], [30.0, 2.0]]))
+    assert_close_relative(moved, np.array([[62.0, 21.0], [0.9 * 30 - 0.1 * 2 + 1, 0.1 * 30 + 0.9 * 2 - 2]]))
+
+
+def test_newton_inverse_undoes_the_tps_and_failure_is_nan(gl, rng):
+    pts = frame_points(rng, 1000, margin=0)
+    forward = gl.map_points(tps_map(), pts)
+    assert_close_relative(gl.map_points(tps_map().inverse, forward), pts, rtol=3e-5)
+    stuck = gl.map_points(Staged([tps_inverse_stage(iters=1, tol=0.0)]), pts[:100])
+    assert np.all(np.isnan(stuck))
+
+
+def test_map_points_keeps_shape_and_passes_non_finite(gl, rng):
+    transform = sample_fpi()
+    pts = frame_points(rng, 30).reshape(3, 5, 2, 2)[:, :, 0]  # not contiguous
+    got = gl.map_points(transform, pts)
+    assert got.shape == (3, 5, 2)
+    assert_close_relative(got, transform(pts))
+    assert gl.map_points(transform, np.zeros((0, 2))).shape == (0, 2)
+    assert not np.any(np.isfinite(gl.map_points(transform, [[np.nan, 1.0]])))
+    assert fpiwarp.map_points(transform, [[1, 2]], backend="gl").shape == (1, 2)
+
+
+# --- warp_image (per pixel) -----------------------------------------------------
+
+
+def make_image(shape, dtype, seed=0):
+    rng = np.random.default_rng(seed)
+    if np.dtype(dtype).kind == "f":
+        return rng.random(shape).astype(dtype)
+    return rng.integers(0, np.iinfo(dtype).max, size=shape, endpoint=True).astype(dtype)
+
+
+def assert_images_agree(got, want, dtype, fraction=PIXEL_FRACTION, levels=1.0):
+    assert got.dtype == want.dtype and got.shape == want.shape
+    diff = np.abs(got.astype(np.float64) - want.astype(np.float64))
+    ok = np.all(diff <= levels * LEVEL[dtype] * (1 + 1e-6), axis=-1)
+    assert ok.mean() >= fraction, f"only {ok.mean():.4%} of pixels within {levels} level(s)"
+
+
+def reference(img, transform, shape, order, mode, cval):
+    cv = np.broadcast_to(np.asarray(cval, dtype=np.float64), (img.shape[2],)).copy()
+    return numpy_backend.Backend().warp_image(img, transform, shape, order=order, mode=mode, cval=cv), cv
+
+
+def compare_warp(backend, img, transform, shape, order, mode, cval):
+    want, cv = reference(img, transform, shape, order, mode, cval)
+    got = backend.warp_image(img, transform, shape, order=order, mode=mode, cval=cv)
+    assert_images_agree(got, want, img.dtype.type)
+    return got, want
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("order", ORDERS)
+def test_warp_image_every_order_and_mode(gl, order, mode):
+    img = make_image((48, 64, 3), np.uint8, seed=order)
+    compare_warp(gl, img, sample_fpi(), (52, 70), order, mode, [20, 128, 250])
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_warp_image_every_dtype_and_channel_count(gl, dtype):
+    """Every mode once per dtype (the order grid above is uint8 RGB): each
+    combination is a shader variant to compile, seconds on llvmpipe."""
+    order = 1
+    for channels, mode in zip((1, 2, 3, 4), MODES):
+        img = make_image((48, 64, channels), dtype, seed=channels)
+        cval = np.linspace(0.1, 0.9, channels) * (1 if dtype is np.float32 else np.iinfo(dtype).max)
+        compare_warp(gl, img, sample_fpi(), (52, 70), order, mode, cval)
+
+
+@pytest.mark.parametrize("name", ["tps", "region", "compound"])
+def test_warp_image_of_tps_regions_and_compounds(gl, name):
+    transform = {"tps": tps_map, "region": region_map, "compound": MAPS["compound"]}[name]()
+    img = make_image((48, 64, 3), np.uint8, seed=5)
+    for order, mode in [(1, "constant"), (3, "reflect")]:
+        compare_warp(gl, img, transform, (48, 64), order, mode, [10, 20, 30])
+
+
+def test_coordinates_are_pixel_centers_x_column_y_row(gl):
+    """A translation by (3, 5) moves pixel (row r, column c) to (r + 5, c + 3)
+    exactly: no half-pixel offset, no flipped rows."""
+    img = make_image((20, 30, 3), np.uint8)
+    for order in ORDERS:
+        out = gl.warp_image(img, RLinear(1, 0, 3 + 5j), (20, 30), order=order, mode="constant", cval=np.zeros(3))
+        assert np.array_equal(out[5:, 3:], img[:15, :27])
+        assert np.all(out[:5] == 0) and np.all(out[:, :3] == 0)
+
+
+def test_non_finite_positions_give_cval_in_every_mode(gl):
+    transform = Staged([tps_stage()], [tps_inverse_stage(iters=0, tol=0.0)])
+    img = make_image((20, 30, 3), np.uint8)
+    for order, mode in [(1, "constant"), (1, "edge"), (3, "reflect"), (1, "wrap")]:
+        out = gl.warp_image(img, transform, (20, 30), order=order, mode=mode, cval=np.array([1.0, 2, 254.6]))
+        assert np.all(out == np.array([1, 2, 255], np.uint8))
+
+
+def test_pole_inside_the_output_is_handled_like_the_reference(gl):
+    """The inverse z / (0.05 z - 1 - 0.5j) has its pole at the output pixel
+    (row 10, column 20): positions there are huge or non-finite."""
+    transform = Mobius(1, 0, 0.05, -1 - 0.5j).inverse
+    img = make_image((40, 60, 3), np.uint8)
+    for mode in MODES:
+        compare_warp(gl, img, transform, (40, 60), 1, mode, [5, 6, 7])
+
+
+def test_integer_rounding_and_clipping(gl):
+    """Cubic overshoot clips to the dtype range; float32 is neither rounded nor clipped."""
+    img = np.zeros((8, 8, 1), np.float32)
+    img[:, 4:] = 1.0
+    shift = RLinear(1, 0, 0.3)
+    got_f = gl.warp_image(img, shift, (8, 8), order=3, mode="edge", cval=np.zeros(1))
+    assert got_f.min() < 0 and got_f.max() > 1
+    for dtype in (np.uint8, np.uint16):
+        top = np.iinfo(dtype).max
+        got = gl.warp_image((img * top).astype(dtype), shift, (8, 8), order=3, mode="edge", cval=np.zeros(1))
+        assert got.min() == 0 and got.max() == top
+        want = np.clip(np.floor(got_f.astype(np.float64) * top + 0.5), 0, top)
+        assert np.abs(got.astype(np.float64) - want).max() <= 1
+
+
+def test_public_api_with_2d_image(gl_backend):
+    img = make_image((48, 64), np.uint8)
+    got = fpiwarp.warp_image(img, sample_fpi(), backend=gl_backend)
+    want = fpiwarp.warp_image(img, sample_fpi())
+    assert got.shape == (48, 64)
+    assert_images_agree(got[..., None], want[..., None], np.uint8)
+
+
+def test_hardware_filter_is_close_and_limited_to_what_gl_can_do(gl):
+    """The fast option: texture-unit filtering, weights quantized by GL."""
+    img = make_image((48, 64, 3), np.uint8)
+    for order, mode in [(0, "edge"), (1, "constant"), (1, "wrap")]:
+        want, cv = reference(img, sample_fpi(), (52, 70), order, mode, [9, 99, 199])
+        got = gl.warper.warp_image(img, sample_fpi(), (52, 70), order=order, mode=mode, cval=cv,
+                                   hardware_filter=True)
+        assert_images_agree(got, want, np.uint8, fraction=0.99, levels=3)
+    with pytest.raises(ValueError, match="modes"):
+        gl.warper.warp_image(img, sample_fpi(), (8, 8), mode="reflect", hardware_filter=True)
+    with pytest.raises(ValueError, match="order"):
+        gl.warper.warp_image(img, sample_fpi(), (8, 8), order=3, hardware_filter=True)
+
+
+# --- tiling ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_tiled_source_and_output_match_untiled(gl, gl_small, dtype):
+    """With 16-pixel textures a 48×64 source is 12 tiles and a 52×70 output
+    20; the sum over source tiles equals the one-pass result."""
+    img = make_image((48, 64, 3), dtype, seed=3)
+    cval = np.array([0.2, 0.5, 0.7]) * (1 if dtype is np.float32 else np.iinfo(dtype).max)
+    for order, mode in [(0, "wrap"), (3, "reflect")]:
+        got, _ = compare_warp(gl_small, img, sample_fpi(), (52, 70), order, mode, cval)
+        one_pass = gl.warp_image(img, sample_fpi(), (52, 70), order=order, mode=mode, cval=cval)
+        assert_images_agree(got, one_pass, dtype, fraction=0.999)
+    _check_gl(gl_small.ctx)
+
+
+def test_only_the_output_tiled(gl_small):
+    img = make_image((12, 10, 2), np.uint16)
+    compare_warp(gl_small, img, RLinear(3.1, 0.2j, 1 + 2j), (40, 35), 1, "reflect", [7, 8])
+
+
+# --- mesh path ------------------------------------------------------------------------
+
+
+def smooth_image(h, w, channels=3):
+    y, x = np.mgrid[0:h, 0:w]
+    base = 128 + 90 * np.sin(x / 6.0) * np.cos(y / 5.0)
+    return np.stack([base + 10 * k for k in range(channels)], -1).clip(0, 255).astype(np.uint8)
+
+
+def mesh_regions(transform, shape, src_shape, margin=1.5):
+    """Output pixels whose source position is well inside / well outside."""
+    grid = np.stack(np.meshgrid(np.arange(shape[1], dtype=float), np.arange(shape[0], dtype=float)), -1)
+    src = transform.inverse(grid)
+    h, w = src_shape
+    inside = np.all((src > margin - 0.5) & (src < np.array([w, h]) - 0.5 - margin), axis=-1)
+    outside = np.any((src < -0.5 - margin) | (src > np.array([w, h]) - 0.5 + margin), axis=-1)
+    return inside, outside, src
+
+
+def test_mesh_path_matches_backward_warp_inside_and_gives_cval_outside(gl, gl_small):
+    from fpiwarp.backends.gl_backend import warp_image_mesh
+
+    img = smooth_image(48, 64)
+    transform = sample_fpi()
+    want, _ = reference(img, transform, (52, 70), 1, "constant", [1, 2, 3])
+    got = warp_image_mesh(img, transform, (52, 70), order=1, cval=[1, 2, 3], grid_step=2)
+    inside, outside, _ = mesh_regions(transform, (52, 70), (48, 64))
+    assert inside.sum() > 2000 and outside.sum() > 100
+    assert_images_agree(got[inside], want[inside], np.uint8)
+    assert np.all(got[outside] == [1, 2, 3])
+    # tiled source and output give the same image
+    tiled = gl_small.warper.warp_image_mesh(img, transform, (52, 70), order=1, cval=np.array([1.0, 2, 3]),
+                                           grid_step=2)
+    assert_images_agree(tiled, got, np.uint8, fraction=0.999)
+    _check_gl(gl.ctx)
+
+
+def test_mesh_path_drops_triangles_at_the_pole(gl):
+    """The forward map's pole z∞ = (30, 20) lies inside the source: triangles
+    around it would span the output; they are dropped (culled), and the rest
+    of the image still matches the backward warp."""
+    from fpiwarp.backends.gl_backend import warp_image_mesh
+
+    transform = Mobius(1, 0, 0.05, 1, center=0) @ RLinear(1, 0, -30 - 20j)
+    transform = RLinear(3, 0, 30 + 20j) @ transform  # keep the output in frame
+    img = smooth_image(40, 60)
+    want, _ = reference(img, transform, (40, 60), 1, "constant", [0, 0, 0])
+    got = warp_image_mesh(img, transform, (40, 60), order=1, cval=0, grid_step=1)
+    inside, _, src = mesh_regions(transform, (40, 60), (40, 60))
+    far = inside & (np.hypot(src[..., 0] - 30, src[..., 1] - 20) > 4)
+    assert far.sum() > 1000
+    assert_images_agree(got[far], want[far], np.uint8, fraction=0.99)
+
+
+def test_mesh_vertices_sent_to_nan_clip_their_triangles(gl):
+    """Left of x = 31.8 the forward map gives NaN: those vertices' triangles
+    vanish (clip distance) instead of stretching across the output."""
+    from fpiwarp.backends.gl_backend import warp_image_mesh
+
+    nan = complex(np.nan, np.nan)
+    transform = Staged([Stage(regions=(Region(origin=31.8 + 0j, normal=-1 + 0j, a=nan, b=nan),))])
+    img = smooth_image(48, 64)
+    got = warp_image_mesh(img, transform, order=0, cval=[1, 2, 3], grid_step=1)
+    assert np.array_equal(got[:, 33:], img[:, 33:])  # cells right of x = 32.5 are whole
+    assert np.all(got[:, :33] == [1, 2, 3])
+
+
+def test_mesh_user_triangles_any_winding(gl):
+    from fpiwarp.backends.gl_backend import warp_image_mesh
+
+    img = smooth_image(20, 30)
+    verts = [[-0.5, -0.5], [29.5, -0.5], [29.5, 19.5], [-0.5, 19.5]]
+    tris = [[0, 2, 1], [0, 2, 3]]  # one clockwise, one counter-clockwise
+    got = warp_image_mesh(img, RLinear(1, 0, 0), vertices=verts, triangles=tris, order=0)
+    assert np.array_equal(got, img)
+    with pytest.raises(ValueError, match="indices"):
+        warp_image_mesh(img, RLinear(1, 0, 0), vertices=verts, triangles=[[0, 1, 9]])
+
+
+# --- programs compile once per kind -----------------------------------------------------
+
+
+def test_a_changed_map_does_not_rebuild_the_program(gl, rng):
+    img = make_image((16, 16, 3), np.uint8)
+    pts = frame_points(rng, 10)
+    gl.map_points(sample_fpi(), pts)
+    gl.warp_image(img, sample_fpi(), (16, 16), order=1, mode="edge", cval=np.zeros(3))
+    programs, count = dict(gl.warper._programs), gl.warper.compile_count
+    for k in range(5):  # drag one corner: new values, same kind of map
+        moved = FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4 + k, 3 - k], [60, -2], [66, 50], [-3, 44]])
+        gl.map_points(moved, pts)
+        out = gl.warp_image(img, moved, (16, 16), order=1, mode="edge", cval=np.zeros(3))
+        want, _ = reference(img, moved, (16, 16), 1, "edge", 0)
+        assert_images_agree(out, want, np.uint8)
+    assert gl.warper.compile_count == count and gl.warper._programs == programs
+
+
+# --- availability --------------------------------------------------------------------------
+
+
+def test_probe_reports_why_without_a_driver(monkeypatch):
+    pytest.importorskip("moderngl")
+    from fpiwarp.backends import gl_backend
+
+    def no_driver():
+        raise RuntimeError("no OpenGL 3.3 context: egl: no display")
+
+    monkeypatch.setattr(gl_backend, "_shared", {})
+    monkeypatch.setattr(gl_backend, "create_context", no_driver)
+    assert gl_backend.probe() == "no OpenGL 3.3 context: egl: no display"
+    with pytest.raises(RuntimeError, match="no display"):
+        gl_backend.Backend()
+
+
+def test_bad_arguments_are_clear_errors(gl):
+    img = make_image((8, 8, 1), np.uint8)
+    with pytest.raises(ValueError, match="order"):
+        gl.warp_image(img, sample_fpi(), (8, 8), order=2, mode="edge", cval=np.zeros(1))
+    with pytest.raises(ValueError, match="mode"):
+        gl.warp_image(img, sample_fpi(), (8, 8), order=1, mode="mirror", cval=np.zeros(1))
+    with pytest.raises(ValueError, match="block"):
+        gl.warper.set_map(np.zeros((3, 3), np.float32))
