@@ -9,9 +9,34 @@ distortion K = (|f_z| + |f_zbar|) / (|f_z| - |f_zbar|) and the dilation
 Composition is in mathematical order: ``(g @ f)(p) == g(f(p))``.
 """
 
+import contextlib
+import contextvars
+
 import numpy as np
 
 from ._points import as_complex, as_xy
+
+_UNSOLVED_AS_NAN = contextvars.ContextVar("fpiwarp_unsolved_as_nan", default=False)
+
+
+@contextlib.contextmanager
+def unsolved_as_nan():
+    """Inside this block, points that a numerical inverse cannot solve come
+    out NaN ("outside") instead of raising InverseNotConvergedError.
+
+    Image warping wants this: such a pixel gets the border treatment, as in
+    the kernels, while the rest of the image is still warped.
+    """
+    token = _UNSOLVED_AS_NAN.set(True)
+    try:
+        yield
+    finally:
+        _UNSOLVED_AS_NAN.reset(token)
+
+
+def unsolved_are_nan():
+    """True inside :func:`unsolved_as_nan`."""
+    return _UNSOLVED_AS_NAN.get()
 
 
 def chain(outer, inner_value, inner_fz, inner_fzb):

@@ -32,6 +32,7 @@ from ._sampling import MODES, ORDERS, sample, to_dtype
 from ._transform import Transform
 from ._warp import check_cval, check_image, check_output_shape, warp_image
 from .backends import get_backend
+from .backends.numpy_backend import source_positions
 from .io import ImageError, OutputExistsError, check_writable, is_temp_file, read_image, write_image
 
 __all__ = ["BatchSummary", "Warper", "list_inputs", "run_batch", "warp_batch", "warp_images"]
@@ -89,7 +90,7 @@ class Warper:
         grid = np.empty((oh, ow, 2))
         grid[..., 0] = np.arange(ow, dtype=np.float64)
         grid[..., 1] = np.arange(oh, dtype=np.float64)[:, None]
-        pos = self.transform.inverse(grid)
+        pos = source_positions(self.transform.inverse, grid)
         pos.flags.writeable = False
         with self._lock:
             self._maps[shape] = pos

@@ -3,9 +3,17 @@
 import numpy as np
 
 from .._sampling import sample, to_dtype
+from .._transform import unsolved_as_nan
 
 #: Output pixels processed per chunk, to bound memory on large images.
 CHUNK_PIXELS = 1 << 19
+
+
+def source_positions(inverse, grid):
+    """Where output pixels sample the source: ``inverse(grid)``, with points
+    a numerical inverse cannot solve coming out NaN (cval), as on devices."""
+    with unsolved_as_nan():
+        return inverse(grid)
 
 
 def probe():
@@ -29,7 +37,7 @@ class Backend:
             grid = np.empty((r1 - r0, ow, 2))
             grid[..., 0] = xs
             grid[..., 1] = np.arange(r0, r1, dtype=np.float64)[:, None]
-            src = inverse(grid)
+            src = source_positions(inverse, grid)
             values = sample(image, src[..., 0], src[..., 1], order, mode, cval)
             out[r0:r1] = to_dtype(values, image.dtype)
         return out

@@ -1,0 +1,292 @@
+"""The constrained FPI f = m_W⁻¹ ∘ phi ∘ m_Z of paper §4.2 (Algorithm 3).
+
+m_Z and m_W are the FPI's Möbius maps to unit-radius parallelograms; phi
+is a thin-plate spline fitted there to points spread along two
+constrained edges plus offset copies of them (eq. 15), so that f follows
+each edge's similarity along the edge, with a normal derivative set by
+the offset points, and stays as close to the FPI's affine map as the TPS
+energy allows. Without edge constraints phi would be affine and f the FPI.
+
+Edge k joins point k and point k + 1 (mod 4). Constraint points, for K
+points per edge (ends included, equally spread):
+
+- opposite edges ((0, 2) or (1, 3)): K points on each edge, all four
+  corners among them, each with an offset copy: 4 K centers;
+- adjacent edges: K on the first, K - 1 on the second (the shared corner
+  once: repeated centers make the TPS singular), the free corner, and an
+  offset copy of every edge point (the shared corner gets one per edge,
+  distinct points): 4 K centers as well.
+
+Offsets (eq. 15) move a point p of edge z_a z_b (opposite edge z_c z_d,
+side edges z_a z_d and z_b z_c) inwards by
+δ (|z_a - z_d| |p - z_b| + |z_b - z_c| |p - z_a|) / |z_b - z_a|: the
+side lengths linearly interpolated along the edge, times δ. The paper's
+eq. 15 omits the division by |z_b - z_a|; with it the offsets scale with
+the quad, as a relative distance δ must. For adjacent edges "the side
+edge" at the shared corner is the other constrained edge, at the other
+ends the free corner's edges. The same rule on W gives the target of
+each offset point.
+"""
+
+import numpy as np
+
+from ._errors import DegenerateQuadError
+from ._fpi import _centered_at_zero
+from ._linear import RLinear
+from ._mobius import Mobius, _matmul
+from ._quad import check_quad, parallelogram_mobius, signed_area
+from ._tps import ThinPlateSpline
+from ._transform import Transform, chain
+from .params import MAX_CENTERS
+
+#: Adjacent constrained edges must agree on one similarity to this relative tolerance.
+SIMILARITY_RTOL = 1e-6
+
+
+def normalize_edges(edges):
+    """Validate an edge pair; return ((i, j), kind) with kind "opposite" or
+    "adjacent" and, for adjacent edges, i the edge whose end is the shared corner."""
+    try:
+        i, j = (int(e) for e in edges)
+    except (TypeError, ValueError):
+        raise ValueError(f"edges must be two edge indices in 0..3, got {edges!r}") from None
+    if not (0 <= i <= 3 and 0 <= j <= 3) or i == j:
+        raise ValueError(f"edges must be two different edge indices in 0..3, got {edges!r}")
+    if (i - j) % 4 == 2:
+        return (min(i, j), max(i, j)), "opposite"
+    if (j - i) % 4 == 1:
+        return (i, j), "adjacent"
+    return (j, i), "adjacent"
+
+
+def edge_similarity(z, w, k):
+    """(a, b) of the similarity a z + b taking edge k of z onto edge k of w."""
+    z0, z1, w0, w1 = z[k], z[(k + 1) % 4], w[k], w[(k + 1) % 4]
+    a = (w1 - w0) / (z1 - z0)
+    return a, w0 - a * z0
+
+
+def shared_similarity(z, w, first):
+    """The one similarity of adjacent edges ``first`` and ``first + 1``.
+
+    Raises ValueError when no similarity takes the three constrained
+    corners of z to those of w (relative tolerance SIMILARITY_RTOL).
+    """
+    idx = [first, (first + 1) % 4, (first + 2) % 4]
+    a1, _ = edge_similarity(z, w, first)
+    a2, _ = edge_similarity(z, w, (first + 1) % 4)
+    if abs(a1 - a2) > SIMILARITY_RTOL * max(abs(a1), abs(a2)):
+        raise ValueError(
+            f"adjacent constrained edges {first} and {(first + 1) % 4} must undergo one shared "
+            f"similarity, but no similarity maps src points {idx} to dst points {idx} (edge scale-"
+            f"rotations {complex(a1):.6g} and {complex(a2):.6g} differ): move only the free point "
+            f"{(first + 3) % 4}, or constrain opposite edges"
+        )
+    # least squares over the three corners (exact up to SIMILARITY_RTOL)
+    zz, ww = z[idx], w[idx]
+    zc, wc = zz - zz.mean(), ww - ww.mean()
+    a = np.vdot(zc, wc) / np.vdot(zc, zc)
+    return a, ww.mean() - a * zz.mean()
+
+
+def _offsets(q, k, other, t, delta, orient):
+    """Offset copies (eq. 15, normalized) of points q[k] + t (q[k+1] - q[k])."""
+    za, zb = q[k], q[(k + 1) % 4]
+    e = zb - za
+    inward = 1j * e / abs(e) * orient  # left normal for counter-clockwise quads
+    side_a, side_b = other
+    dist = delta * ((1 - t) * side_a + t * side_b)
+    return za + t * e + inward * dist
+
+
+def constraint_points(q, edges, kind, points_per_edge, delta):
+    """Constraint points on quad q (complex (4,)): edge points, free corner
+    (adjacent only), then offset copies; see the module docstring."""
+    orient = np.sign(signed_area(q))
+    t = np.linspace(0.0, 1.0, points_per_edge)
+    side = [abs(q[(k + 1) % 4] - q[k]) for k in range(4)]  # side[k]: length of edge k
+    pts, offs = [], []
+    for n, k in enumerate(edges):
+        e_pts = q[k] + t * (q[(k + 1) % 4] - q[k])
+        # side edges: at q[k] edge k-1, at q[k+1] edge k+1
+        o = _offsets(q, k, (side[(k - 1) % 4], side[(k + 1) % 4]), t, delta, orient)
+        if kind == "adjacent" and n == 1:
+            e_pts = e_pts[1:]  # shared corner once
+        pts.append(e_pts)
+        offs.append(o)
+    if kind == "adjacent":
+        pts.append(np.array([q[(edges[0] + 3) % 4]]))
+    return np.concatenate(pts + offs)
+
+
+class ConstrainedFPI(Transform):
+    """The constrained 4-point interpolant from quad ``src`` to quad ``dst``.
+
+    Interpolates all four corners, follows each constrained edge's
+    similarity along that edge (z_k -> w_k, z_k+1 -> w_k+1), and is
+    otherwise as close to the FPI as a thin-plate spline in the FPI's
+    parallelogram coordinates can be (paper §4.2, Algorithm 3).
+
+    Parameters
+    ----------
+    src, dst : array-like (4, 2)
+        The quads, same orientation (clockwise in (x, y), as image
+        coordinates give for counter-clockwise on screen, is fine).
+    edges : pair of int
+        The constrained edges; edge k joins point k and point k + 1 (mod 4).
+        Opposite ((0, 2), (1, 3)) or adjacent. Adjacent edges share one
+        similarity: dst must be src under one similarity at their three
+        corners, or ValueError.
+    points_per_edge : int
+        K, points spread along each constrained edge (ends included);
+        the spline gets 4 K centers, so 2 <= K <= 16.
+    delta : float
+        δ of eq. 15, the relative distance of the offset points.
+
+    Attributes
+    ----------
+    pre, core, post : the parts m_Z, phi (a ThinPlateSpline; its Newton
+        inverse for an inverse map) and m_W⁻¹, applied in that order.
+    edges, kind : the normalized edge pair and "opposite" or "adjacent".
+    constraints : (src points, dst points), each (4 K, 2): the spline's
+        constraints before the Möbius change of coordinates.
+
+    ``inverse`` is numerical: m_Z⁻¹ ∘ phi⁻¹ ∘ m_W with phi⁻¹ by Newton's
+    method (converged to 1e-9 relative or InverseNotConvergedError).
+
+    >>> sq = [[0, 0], [2, 0], [2, 1], [0, 1]]
+    >>> f = ConstrainedFPI(sq, [[0, 0], [2, 0], [2.2, 1.1], [0, 1]], edges=(3, 1))
+    >>> np.round(f(sq), 9).tolist()[2]
+    [2.2, 1.1]
+    >>> ConstrainedFPI(sq, [[0, 0], [2, 0], [2.2, 1.1], [0, 1]], edges=(0, 1))
+    Traceback (most recent call last):
+    ...
+    ValueError: adjacent constrained edges 0 and 1 must undergo one shared similarity, but no similarity maps src points [0, 1, 2] to dst points [0, 1, 2] (edge scale-rotations 1+0j and 1.1-0.2j differ): move only the free point 3, or constrain opposite edges
+    """
+
+    def __init__(self, src, dst, edges, points_per_edge=10, delta=0.01):
+        z = check_quad(src, "src")
+        w = check_quad(dst, "dst")
+        if np.sign(signed_area(z)) != np.sign(signed_area(w)):
+            raise DegenerateQuadError(
+                "src and dst have opposite orientations (one is clockwise, the other "
+                "counter-clockwise): no orientation-preserving map joins them"
+            )
+        edges, kind = normalize_edges(edges)
+        k = _check_points_per_edge(points_per_edge)
+        delta = float(delta)
+        if not (np.isfinite(delta) and delta > 0):
+            raise ValueError(f"delta must be a positive number, got {delta!r}")
+        if kind == "adjacent":
+            shared_similarity(z, w, edges[0])  # refuse inconsistent points early
+        # As for the FPI: solve counter-clockwise, mirror the parts back.
+        flip = signed_area(z) < 0
+        zs, ws = (np.conj(z), np.conj(w)) if flip else (z, w)
+        m_src = parallelogram_mobius(zs)
+        m_dst = parallelogram_mobius(ws)
+        pz = constraint_points(zs, edges, kind, k, delta)
+        pw = constraint_points(ws, edges, kind, k, delta)
+        tps = ThinPlateSpline.fit(m_src._map(pz), m_dst._map(pw))
+        if flip:
+            m_src, tps, m_dst = m_src.conjugated(), tps.conjugated(), m_dst.conjugated()
+        self._init_parts(z, w, m_src, tps, m_dst.inverse)
+        self.edges, self.kind = edges, kind
+        self.points_per_edge, self.delta = k, delta
+        self.constraints = (_xy(pz if not flip else np.conj(pz)), _xy(pw if not flip else np.conj(pw)))
+
+    def _init_parts(self, z, w, pre, core, post):
+        self._z, self._w = z, w
+        if pre.beta != 0:  # the block's pre-Möbius has no offset term
+            raise AssertionError("pre-Möbius must have beta == 0")
+        self.pre, self.core, self.post = pre, core, post
+
+    @classmethod
+    def _from_parts(cls, z, w, pre, core, post, **attrs):
+        obj = cls.__new__(cls)
+        obj._init_parts(z, w, pre, core, post)
+        obj.__dict__.update(attrs)
+        return obj
+
+    @property
+    def src(self):
+        return _xy(self._z)
+
+    @property
+    def dst(self):
+        return _xy(self._w)
+
+    @property
+    def tps(self):
+        """The thin-plate spline phi (for an inverse: the spline it inverts)."""
+        return getattr(self.core, "tps", self.core)
+
+    def _map(self, z):
+        return self.post._map(self.core._map(self.pre._map(z)))
+
+    def _wirtinger(self, z):
+        w, fz, fzb = self.pre._wirtinger(z)
+        w, fz, fzb = chain(self.core, w, fz, fzb)
+        return chain(self.post, w, fz, fzb)
+
+    @property
+    def inverse(self):
+        """m_Z⁻¹ ∘ phi⁻¹ ∘ m_W, phi⁻¹ by Newton (see InverseThinPlateSpline)."""
+        attrs = {k: v for k, v in self.__dict__.items() if k in ("edges", "kind", "points_per_edge", "delta")}
+        if "constraints" in self.__dict__:
+            attrs["constraints"] = self.constraints[::-1]
+        return ConstrainedFPI._from_parts(
+            self._w, self._z, self.post.inverse, self.core.inverse, self.pre.inverse, **attrs
+        )
+
+    def _fuse_with(self, nxt):
+        """A following Möbius map (or similarity) joins the post-Möbius:
+        one stage instead of two (used by Compound)."""
+        m = as_mobius(nxt)
+        if m is None:
+            return None
+        post = Mobius(*_matmul(m.coefficients, self.post.coefficients), center=self.post.q)
+        if post.q != self.post.q:  # the fused pole sits at the center: keep two steps
+            return None
+        attrs = {k: v for k, v in self.__dict__.items() if k in ("edges", "kind", "points_per_edge", "delta")}
+        return ConstrainedFPI._from_parts(self._z, m._map(self._w), self.pre, self.core, post, **attrs)
+
+    def stage(self, **kw):
+        """One parameter-block stage: pre-Möbius, TPS core (or its Newton
+        inverse), post-Möbius; ``kw`` adds Stage fields (regions)."""
+        p = self.pre
+        return self.core.stage(pre=(p.q, p.s, p.alpha), post=_centered_at_zero(self.post), **kw)
+
+    def stages(self):
+        return [self.stage()]
+
+    def __repr__(self):
+        return (
+            f"ConstrainedFPI(src={self.src.tolist()}, dst={self.dst.tolist()}, "
+            f"edges={getattr(self, 'edges', None)})"
+        )
+
+
+def as_mobius(t):
+    """t as a Möbius map if it is one (a Mobius, or an RLinear similarity), else None."""
+    if isinstance(t, Mobius):
+        return t
+    if isinstance(t, RLinear) and t.l2 == 0:
+        return Mobius(t.l1, t.l3, 0, 1)
+    return None
+
+
+def _check_points_per_edge(k):
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+        raise TypeError(f"points_per_edge must be an int, got {type(k).__name__}")
+    k = int(k)
+    kmax = MAX_CENTERS // 4
+    if not 2 <= k <= kmax:
+        raise ValueError(
+            f"points_per_edge must be in 2..{kmax}: the spline gets 4 * points_per_edge "
+            f"centers and the parameter block holds at most {MAX_CENTERS}, got {k}"
+        )
+    return k
+
+
+def _xy(z):
+    return np.stack([np.real(z), np.imag(z)], axis=-1)

@@ -1,0 +1,344 @@
+"""Thin-plate splines of the complex plane and their Newton inverse (paper eq. 13-14).
+
+phi(p) = sum_j b_j U(|p - c_j|) + l1 p + l2 conj(p) + l3,  U(r) = r² log r,
+
+with complex centers c_j and weights b_j. Fitting to constraints
+phi(c_j) = d_j solves the usual (J + 3) × (J + 3) real system once, with
+the real and imaginary parts of d as two right-hand sides. The side
+conditions sum b_j = sum b_j x_j = sum b_j y_j = 0 make phi affine plus
+O(log |p|) far away, so Newton's method seeded with the inverse of the
+affine part converges quickly wherever phi is close to affine.
+
+Wirtinger derivatives of one term, with d = p - c and r² = |d|²:
+d/dp [½ r² log r²] = ½ (log r² + 1) conj(d), d/dconj(p) = ½ (log r² + 1) d,
+exactly what :func:`fpiwarp.params._tps` evaluates on the device.
+"""
+
+import numpy as np
+
+from ._errors import InverseNotConvergedError
+from ._transform import Transform, unsolved_are_nan
+from .params import CORE_TPS, CORE_TPS_INVERSE, MAX_CENTERS, Stage
+
+#: Points evaluated per chunk (bounds the (chunk, centers) work arrays,
+#: small enough to stay in cache).
+CHUNK = 1 << 12
+#: Points per Newton batch (its per-iteration bookkeeping is per batch).
+NEWTON_CHUNK = 1 << 17
+#: Host Newton: aim for |phi(x) - p| <= HOST_AIM * max(scale, |p - mid|) and
+#: raise InverseNotConvergedError where even HOST_RTOL is not reached.
+HOST_AIM = 1e-13
+HOST_RTOL = 1e-9
+HOST_MAX_ITERS = 60
+#: Device Newton (float32): iterations and tolerance, in units of the
+#: spline's scale (the radius of its targets, 1 in parallelogram
+#: coordinates). float32 evaluation of a 40-center spline there carries
+#: up to ~1e-5 of rounding noise (measured: 2e-6 to 2e-5 for moderate
+#: deformations), so 5e-5 is reached reliably. Newton converges
+#: quadratically, so the last step usually lands at the noise floor; the
+#: worst case, 5e-5 of the region's radius, is 0.05 px for a region 2000 px
+#: across.
+DEVICE_RTOL = 5e-5
+DEVICE_ITERS = 12
+
+
+def _kernel_terms(p, centers):
+    """r² and ½ (log r² + 1) for every (point, center) pair; U = ½ r² log r²."""
+    d = p[:, None] - centers[None, :]
+    r2 = d.real**2 + d.imag**2
+    pos = r2 > 0
+    lg = np.log(np.where(pos, r2, 1.0))
+    return d, r2, lg
+
+
+class ThinPlateSpline(Transform):
+    """phi(p) = sum_j b_j U(|p - c_j|) + l1 p + l2 conj(p) + l3, U(r) = r² log r.
+
+    Build it with :meth:`fit` from centers and targets (complex or (J, 2)),
+    or directly from ``centers``, ``weights`` and the R-linear part
+    ``lam = (l1, l2, l3)``. The map is smooth everywhere; ``inverse`` is
+    numerical (Newton), see :class:`InverseThinPlateSpline`.
+
+    >>> tps = ThinPlateSpline.fit([0, 1, 1j, 1 + 1j, 0.5 + 0.5j],
+    ...                           [0, 1, 1j, 1 + 1j, 0.6 + 0.5j])
+    >>> np.round(tps([[0.5, 0.5], [1.0, 0.0]]), 12).tolist()
+    [[0.6, 0.5], [1.0, 0.0]]
+    >>> ThinPlateSpline.fit([0, 1, 2], [0, 1, 2])
+    Traceback (most recent call last):
+    ...
+    ValueError: thin-plate spline centers are collinear or coincide: the fit is singular
+    """
+
+    def __init__(self, centers, weights, lam):
+        self.centers = np.asarray(centers, dtype=np.complex128).reshape(-1)
+        self.weights = np.asarray(weights, dtype=np.complex128).reshape(-1)
+        if self.centers.shape != self.weights.shape:
+            raise ValueError("one weight per center is needed")
+        if len(self.centers) > MAX_CENTERS:
+            raise ValueError(
+                f"a thin-plate spline packs at most {MAX_CENTERS} centers, got {len(self.centers)}"
+            )
+        self.l1, self.l2, self.l3 = (complex(v) for v in lam)
+        if abs(abs(self.l1) - abs(self.l2)) <= 1e-14 * (abs(self.l1) + abs(self.l2)):
+            raise ValueError("singular affine part of the thin-plate spline: |l1| == |l2|")
+
+    @classmethod
+    def fit(cls, centers, targets):
+        """The interpolating spline with phi(c_j) = d_j of least bending energy."""
+        c = _as_complex_1d(centers, "centers")
+        d = _as_complex_1d(targets, "targets")
+        if c.shape != d.shape:
+            raise ValueError(f"need one target per center, got {c.shape[0]} and {d.shape[0]}")
+        n = len(c)
+        if n < 3:
+            raise ValueError(f"a thin-plate spline needs at least 3 centers, got {n}")
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):
+            raise ValueError("thin-plate spline centers and targets must be finite")
+        # Solve in coordinates centered and scaled by the data: same spline
+        # (the TPS is similarity invariant), better conditioned system.
+        mid = c.mean()
+        scale = float(np.max(np.abs(c - mid))) or 1.0
+        cs = (c - mid) / scale
+        _, r2, lg = _kernel_terms(cs, cs)
+        a = np.zeros((n + 3, n + 3))
+        a[:n, :n] = 0.5 * r2 * lg
+        a[:n, n] = a[n, :n] = 1.0
+        a[:n, n + 1] = a[n + 1, :n] = cs.real
+        a[:n, n + 2] = a[n + 2, :n] = cs.imag
+        rhs = np.zeros((n + 3, 2))
+        rhs[:n, 0], rhs[:n, 1] = d.real, d.imag
+        close = r2[~np.eye(n, dtype=bool)]
+        if close.size and close.min() <= 1e-24:
+            raise ValueError("thin-plate spline centers repeat: the fit is singular")
+        if np.linalg.matrix_rank(a[:n, n:], tol=1e-9) < 3:
+            raise ValueError("thin-plate spline centers are collinear or coincide: the fit is singular")
+        try:
+            sol = np.linalg.solve(a, rhs)
+        except np.linalg.LinAlgError:
+            sol = None
+        if sol is None or not np.all(np.isfinite(sol)):
+            raise ValueError("thin-plate spline system is singular (repeated centers?)")
+        coef = sol[:, 0] + 1j * sol[:, 1]
+        b, a0, ax, ay = coef[:n], coef[n], coef[n + 1], coef[n + 2]
+        # In scaled coordinates s = (p - mid) / scale: U(|s - cs|) =
+        # (U(|p - c|) - r² log(scale)) / scale², and the r² terms sum to a
+        # constant under the side conditions: fold it into l3.
+        weights = b / scale**2
+        l1s, l2s = 0.5 * (ax - 1j * ay), 0.5 * (ax + 1j * ay)
+        l1, l2 = l1s / scale, l2s / scale
+        l3 = a0 - l1 * mid - l2 * np.conj(mid)
+        tps = cls(c, weights, (l1, l2, l3))
+        # exact constant: make phi(c) match d on average (absorbs the log(scale) term)
+        tps.l3 += complex(np.mean(d - tps._map(c)))
+        return tps
+
+    @property
+    def lam(self):
+        return (self.l1, self.l2, self.l3)
+
+    def _prepare(self):
+        """Real matrices that turn the sums over centers into matmuls."""
+        c, b = self.centers, self.weights
+        # r² = |p|² + |c|² - 2 (x xc + y yc) = [x, y, 1] @ cmat + |p|²
+        self._cmat = np.stack([-2 * c.real, -2 * c.imag, np.abs(c) ** 2])
+        # weights as rows, applied one matrix-vector product each: for a
+        # handful of columns OpenBLAS's threaded matrix-matrix path is up to
+        # 20x slower than gemv when threads compete for cores
+        self._wval = np.stack([b.real, b.imag])
+        bcc, bc = b * np.conj(c), b * c
+        self._wder = np.stack([b.real, b.imag, bcc.real, bcc.imag, bc.real, bc.imag])
+        self._sums = (b.sum(), bcc.sum(), bc.sum())
+
+    def _terms(self, p):
+        """U = ½ r² log r² and L = log r² for every (point, center) pair."""
+        if not hasattr(self, "_cmat"):
+            self._prepare()
+        xy1 = np.stack([p.real, p.imag, np.ones(p.shape)], axis=1)
+        r2 = xy1 @ self._cmat
+        r2 += (p.real**2 + p.imag**2)[:, None]
+        np.maximum(r2, 1e-300, out=r2)  # rounding can make it slightly negative at a center
+        lg = np.log(r2)
+        return r2, lg
+
+    def _map(self, z):
+        z = np.asarray(z, dtype=np.complex128)
+        flat = z.reshape(-1)
+        out = np.empty_like(flat)
+        for s in range(0, flat.size, CHUNK):
+            p = flat[s : s + CHUNK]
+            r2, lg = self._terms(p)
+            r2 *= lg
+            u = [r2 @ v for v in self._wval]
+            out[s : s + CHUNK] = self.l1 * p + self.l2 * np.conj(p) + self.l3 + 0.5 * (u[0] + 1j * u[1])
+        return out.reshape(z.shape)
+
+    def _wirtinger(self, z):
+        z = np.asarray(z, dtype=np.complex128)
+        flat = z.reshape(-1)
+        val = np.empty_like(flat)
+        fz = np.empty_like(flat)
+        fzb = np.empty_like(flat)
+        for s in range(0, flat.size, CHUNK):
+            p = flat[s : s + CHUNK]
+            r2, lg = self._terms(p)
+            r2 *= lg
+            u = [r2 @ v for v in self._wval]
+            val[s : s + CHUNK] = self.l1 * p + self.l2 * np.conj(p) + self.l3 + 0.5 * (u[0] + 1j * u[1])
+            # sum_j ½ (L_j + 1) b_j conj(p - c_j), and the same with (p - c_j)
+            g = [lg @ v for v in self._wder]
+            sb, sbcc, sbc = self._sums
+            gb = g[0] + 1j * g[1] + sb
+            gbcc = g[2] + 1j * g[3] + sbcc
+            gbc = g[4] + 1j * g[5] + sbc
+            fz[s : s + CHUNK] = self.l1 + 0.5 * (np.conj(p) * gb - gbcc)
+            fzb[s : s + CHUNK] = self.l2 + 0.5 * (p * gb - gbc)
+        return val.reshape(z.shape), fz.reshape(z.shape), fzb.reshape(z.shape)
+
+    @property
+    def affine_inverse(self):
+        """(mu1, mu2, mu3): the inverse of the R-linear part, the Newton seed."""
+        det = abs(self.l1) ** 2 - abs(self.l2) ** 2
+        mu1, mu2 = np.conj(self.l1) / det, -self.l2 / det
+        return mu1, mu2, -(mu1 * self.l3 + mu2 * np.conj(self.l3))
+
+    @property
+    def inverse(self):
+        return InverseThinPlateSpline(self)
+
+    def conjugated(self):
+        """p -> conj(phi(conj p)): the same spline in the mirrored plane."""
+        return ThinPlateSpline(
+            np.conj(self.centers), np.conj(self.weights), tuple(np.conj(v) for v in self.lam)
+        )
+
+    def stage(self, **kw):
+        """The parameter-block stage of this spline (extra Stage fields in ``kw``)."""
+        return Stage(core=CORE_TPS, lam=self.lam, centers=self.centers, weights=self.weights, **kw)
+
+    def stages(self):
+        return [self.stage()]
+
+    def __repr__(self):
+        return f"ThinPlateSpline(<{len(self.centers)} centers>, lam={self.lam!r})"
+
+
+class InverseThinPlateSpline(Transform):
+    """phi⁻¹ by Newton's method, seeded with the inverse of phi's affine part.
+
+    On the host the iteration (with step halving when a step does not
+    reduce the residual) aims at |phi(x) - p| <= 1e-13 · max(scale,
+    |p - mid|) (scale: radius of the spline's targets, mid: their mean),
+    accepts 1e-9 where rounding stops it earlier, and raises
+    :class:`~fpiwarp.InverseNotConvergedError` naming how many points
+    failed otherwise: never a silent wrong answer. Non-finite
+    inputs (the image of a pole) give non-finite outputs.
+
+    On the device (``CORE_TPS_INVERSE``) plain Newton runs at most
+    ``DEVICE_ITERS`` steps to the float32-sane tolerance ``DEVICE_RTOL ·
+    scale``; points that do not get there come out NaN, i.e. "outside".
+    """
+
+    def __init__(self, tps):
+        self.tps = tps
+        t = tps._map(tps.centers)
+        self.mid = complex(np.mean(t))
+        self.scale = float(np.max(np.abs(t - self.mid))) or 1.0
+
+    def _map(self, p):
+        p = np.asarray(p, dtype=np.complex128)
+        flat = p.reshape(-1)
+        out = np.full(flat.shape, np.nan + 0j)
+        ok = np.isfinite(flat)
+        out[~ok] = flat[~ok]  # the pole's image stays at infinity
+        idx = np.flatnonzero(ok)
+        for s in range(0, idx.size, NEWTON_CHUNK):
+            sel = idx[s : s + NEWTON_CHUNK]
+            out[sel] = self._solve(flat[sel])
+        return out.reshape(p.shape)
+
+    def _solve(self, target):
+        tps = self.tps
+        mu1, mu2, mu3 = tps.affine_inverse
+        size = np.maximum(self.scale, np.abs(target - self.mid))
+        tol = HOST_AIM * size
+        x = mu1 * target + mu2 * np.conj(target) + mu3
+        val, fz, fzb = tps._wirtinger(x)
+        res = val - target
+        err = np.abs(res)
+        active = np.flatnonzero(err > tol)
+        for _ in range(HOST_MAX_ITERS):
+            if active.size == 0:
+                break
+            a_fz, a_fzb, a_res = fz[active], fzb[active], res[active]
+            det = np.abs(a_fz) ** 2 - np.abs(a_fzb) ** 2
+            step = (np.conj(a_fz) * a_res - a_fzb * np.conj(a_res)) / det
+            step = np.where(np.isfinite(step), step, 0)
+            t = np.ones(active.size)
+            for _half in range(8):  # backtracking: accept the first step that helps
+                trial = x[active] - t * step
+                v2, fz2, fzb2 = tps._wirtinger(trial)
+                r2 = v2 - target[active]
+                better = np.abs(r2) < err[active]
+                if better.all():
+                    break
+                t = np.where(better, t, 0.5 * t)
+            x[active] = np.where(better, trial, x[active])
+            val[active] = np.where(better, v2, val[active])
+            fz[active] = np.where(better, fz2, fz[active])
+            fzb[active] = np.where(better, fzb2, fzb[active])
+            res[active] = np.where(better, r2, res[active])
+            err[active] = np.abs(res[active])
+            # points no step improves have reached their rounding floor
+            active = active[(err[active] > tol[active]) & better]
+        bad = ~(err <= HOST_RTOL * size)
+        if bad.any() and unsolved_are_nan():
+            x[bad] = np.nan
+        elif bad.any():
+            first = target[np.flatnonzero(bad)[0]]
+            raise InverseNotConvergedError(
+                f"Newton inverse of the thin-plate spline did not converge for {int(bad.sum())} "
+                f"of {target.size} points (first at spline coordinate {first:.6g}, residual "
+                f"{float(err[bad].max()):.3g}): the map is not invertible there "
+                "(fold-over or far outside its region)"
+            )
+        return x
+
+    def _wirtinger(self, p):
+        x = self._map(p)
+        _, fz, fzb = self.tps._wirtinger(x)
+        det = np.abs(fz) ** 2 - np.abs(fzb) ** 2
+        return x, np.conj(fz) / det, -fzb / det
+
+    @property
+    def inverse(self):
+        return self.tps
+
+    def stage(self, **kw):
+        t = self.tps
+        return Stage(
+            core=CORE_TPS_INVERSE,
+            lam=t.lam,
+            centers=t.centers,
+            weights=t.weights,
+            newton_iters=DEVICE_ITERS,
+            newton_tol=DEVICE_RTOL * self.scale,
+            **kw,
+        )
+
+    def stages(self):
+        return [self.stage()]
+
+    def __repr__(self):
+        return f"InverseThinPlateSpline({self.tps!r})"
+
+
+def _as_complex_1d(values, name):
+    arr = np.asarray(values)
+    if np.iscomplexobj(arr):
+        return arr.astype(np.complex128).reshape(-1)
+    arr = np.asarray(arr, dtype=np.float64)
+    if arr.ndim == 1:
+        return arr.astype(np.complex128)
+    if arr.ndim != 2 or arr.shape[-1] != 2:
+        raise ValueError(f"{name} must be complex (J,) or (x, y) pairs (J, 2), got shape {arr.shape}")
+    return arr[:, 0] + 1j * arr[:, 1]
