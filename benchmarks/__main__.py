@@ -1,0 +1,111 @@
+"""Run the benchmarks: ``python3 -m benchmarks [--quick] [--out DIR] [--only speed|quality]``.
+
+Writes into DIR (default: benchmarks/results next to this file), with
+stable names so a rerun replaces the previous results:
+
+- machine.json: CPU, cores, load, library versions, backend devices;
+- speed.md, speed.json, speed_scaling.png: times and ratios to the peers;
+- quality.md, quality.json, quality_fig8.png, quality_fig11.png: the
+  §5.1 distortion table and the Fig. 8 / Fig. 11 pictures.
+
+``--quick`` is a smoke run of a few seconds (small sizes, coarse grids)
+that exercises every code path; its numbers mean little.
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from . import machine, quality, speed
+
+DEFAULT_OUT = Path(__file__).resolve().parent / "results"
+
+
+def _write(path, write):
+    """Write through a temporary file, so a crash leaves no half file."""
+    tmp = path.with_name(path.name + ".tmp")
+    write(tmp)
+    os.replace(tmp, path)
+
+
+def write_text(path, text):
+    _write(path, lambda p: p.write_text(text, encoding="utf-8"))
+
+
+def write_json(path, data):
+    write_text(path, json.dumps(data, indent=1, ensure_ascii=False, allow_nan=False) + "\n")
+
+
+def parse_args(argv):
+    parser = argparse.ArgumentParser(prog="python3 -m benchmarks", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes: a smoke run of a few seconds")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT.name}/ beside this file)")
+    parser.add_argument("--only", choices=("speed", "quality"), help="run one half only")
+    parser.add_argument(
+        "--backends",
+        type=lambda s: [b for b in s.split(",") if b],
+        help="comma-separated fpiwarp backends to time (default: every available one)",
+    )
+    return parser.parse_args(argv)
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+    info = machine.describe()
+    info["mode"] = "quick" if args.quick else "full"
+    machine_md = machine.markdown(info)
+    log = lambda msg: print(msg, flush=True)
+
+    if args.only in (None, "speed"):
+        import fpiwarp
+
+        backends = args.backends
+        if backends is not None:
+            unknown = [b for b in backends if b not in fpiwarp.backend_status()]
+            if unknown:
+                sys.exit(f"unknown backend(s) {unknown}; choose from {sorted(fpiwarp.backend_status())}")
+        settings = speed.Settings.quick(backends) if args.quick else speed.Settings.full(backends)
+        t0 = time.perf_counter()
+        results = speed.run(settings, log=log)
+        info["speed_wall_s"] = round(time.perf_counter() - t0, 1)
+        write_text(out / "speed.md", speed.markdown(results, settings, machine_md))
+        write_json(out / "speed.json", {"machine": info, "results": speed.to_json(results)})
+        from . import plots
+
+        _write(out / "speed_scaling.png", lambda p: plots.speed_scaling(results, p, dpi=50 if args.quick else 90))
+
+    if args.only in (None, "quality"):
+        t0 = time.perf_counter()
+        if args.quick:  # two of each kind, on a coarse grid
+            configs = [c for c in quality.CONFIGS if c.name in ("fig8 col1", "dart")]
+            result = quality.run(40, configs, quality.CONSTRAINED_CONFIGS[::2], log=log)
+        else:
+            result = quality.run(200, log=log)
+        info["quality_wall_s"] = round(time.perf_counter() - t0, 1)
+        write_text(out / "quality.md", quality.markdown(result, machine_md))
+        write_json(out / "quality.json", {"machine": info, **quality.to_json(result)})
+        from . import plots
+
+        n, dpi = (16, 50) if args.quick else (64, 80)
+        _write(out / "quality_fig8.png", lambda p: plots.fig8(result, p, n=n, dpi=dpi))
+        if result.get("constrained"):
+            _write(out / "quality_fig11.png", lambda p: plots.fig11(result, p, n=n, dpi=dpi))
+
+    try:
+        info["load_average_at_end"] = [round(v, 2) for v in os.getloadavg()]
+    except OSError:
+        pass
+    info["wall_s"] = round(time.perf_counter() - t_start, 1)
+    write_json(out / "machine.json", info)
+    log(f"wrote {out} in {info['wall_s']} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
