@@ -1,0 +1,117 @@
+"""Maps and tolerances shared by the kernel backend tests.
+
+Hand-built parameter-block maps (a thin-plate spline, its Newton inverse,
+regions) besides the FPI family, and the accuracy contract every backend
+meets: map_points within RTOL = 1e-5 relative of the float64 reference,
+warp_image within one level of the numpy backend on PIXEL_FRACTION of the
+pixels.
+"""
+
+import numpy as np
+
+from fpiwarp import FPI, Mobius, RLinear, Transform
+from fpiwarp.params import CORE_TPS, CORE_TPS_INVERSE, Region, Stage, evaluate
+
+RTOL = 1e-5
+PIXEL_FRACTION = 0.998
+MODES = ["constant", "edge", "reflect", "wrap"]
+ORDERS = [0, 1, 3]
+DTYPES = [np.uint8, np.uint16, np.float32]
+LEVEL = {np.uint8: 1.0, np.uint16: 257.0, np.float32: 1.0 / 255}
+
+
+class Staged(Transform):
+    """A map given directly by parameter-block stages, evaluated by the
+    float64 reference; ``inverse_stages`` give its inverse for warp_image."""
+
+    def __init__(self, stages, inverse_stages=None):
+        self._stages = list(stages)
+        self._inverse_stages = inverse_stages
+
+    def stages(self):
+        return list(self._stages)
+
+    def _map(self, z):
+        out = evaluate(self.params(), np.stack([z.real, z.imag], axis=-1), np.float64)
+        return out[..., 0] + 1j * out[..., 1]
+
+    @property
+    def inverse(self):
+        return Staged(self._inverse_stages, self._stages)
+
+
+# A mild thin-plate spline on a 64×48 frame, its Newton inverse, and regions.
+_CENTERS = np.array([10 + 8j, 50 + 10j, 30 + 25j, 12 + 40j, 55 + 42j, 32 + 5j])
+_WEIGHTS = np.array([3e-4 + 1e-4j, -2e-4 + 2e-4j, 1e-4 - 3e-4j, -3e-4 - 1e-4j, 2e-4, 1e-4j])
+_LAM = (1.02 + 0.01j, 0.03 - 0.02j, 1.5 - 0.5j)
+
+
+def tps_stage():
+    return Stage(lam=_LAM, core=CORE_TPS, centers=_CENTERS, weights=_WEIGHTS)
+
+
+def tps_inverse_stage(iters=20, tol=1e-4):
+    return Stage(
+        lam=_LAM, core=CORE_TPS_INVERSE, centers=_CENTERS, weights=_WEIGHTS, newton_iters=iters, newton_tol=tol
+    )
+
+
+_REGIONS = (
+    Region(origin=52 + 0j, normal=1 + 0j, a=1 + 0j, b=2 + 1j),  # x > 52: shift
+    Region(origin=0 + 6j, normal=-1j, a=0.9 + 0.1j, b=1 - 2j),  # y < 6: similarity
+)
+
+
+def region_stage():
+    return Stage(lam=(1.01 + 0.02j, 0.02j, 0.5 + 0.25j), regions=_REGIONS)
+
+
+def region_inverse_stage():
+    inv = RLinear(1.01 + 0.02j, 0.02j, 0.5 + 0.25j).inverse
+    regions = tuple(Region(r.a * r.origin + r.b, r.a * r.normal, 1 / r.a, -r.b / r.a) for r in _REGIONS)
+    return Stage(lam=(inv.l1, inv.l2, inv.l3), regions=regions)
+
+
+def tps_map():
+    return Staged([tps_stage()], [tps_inverse_stage()])
+
+
+def region_map():
+    return Staged([region_stage()], [region_inverse_stage()])
+
+
+def sample_fpi():
+    return FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [60, -2], [66, 50], [-3, 44]])
+
+
+def frame_points(rng, n=4000, margin=10.0):
+    return rng.uniform([-margin, -margin], [64 + margin, 48 + margin], size=(n, 2))
+
+
+def assert_close_relative(got, want, rtol=RTOL, atol=0.0):
+    """|got - want| <= rtol * max(|want|, 1) + atol per point (vector norms)."""
+    assert got.shape == want.shape and got.dtype == np.float64
+    err = np.linalg.norm(got - want, axis=-1)
+    scale = np.maximum(np.linalg.norm(want, axis=-1), 1.0)
+    worst = np.max((err - atol) / scale)
+    assert worst <= rtol, f"relative error {worst:.3g} > {rtol} (beyond atol {atol})"
+
+
+def newton_atol(transform):
+    """A Newton inverse is only defined to its tolerance: the reference stops
+    once the residual is <= newton_tol, the device may take one step more.
+    Residual to position: the TPS here has |f_z| - |f_zbar| >= 0.9."""
+    tols = [st.newton_tol for st in transform.stages() if st.core == CORE_TPS_INVERSE]
+    return max(tols, default=0.0) / 0.9
+
+
+
+MAPS = {
+    "fpi": sample_fpi,
+    "mobius": lambda: Mobius(2 + 1j, 3 - 1j, 0.004 + 0.006j, 1),  # pole near (-77, 115)
+    "rlinear": lambda: RLinear(1.2 + 0.3j, 0.1 - 0.2j, 5 + 7j),
+    "compound": lambda: RLinear(0.9, 0.05j, 2) @ sample_fpi() @ Mobius(1 + 0.1j, 2, 0.001j, 1),
+    "tps": tps_map,
+    "tps_inverse": lambda: tps_map().inverse,
+    "compound_of_stages": lambda: Staged([tps_stage(), *sample_fpi().stages(), tps_inverse_stage()]),
+}
