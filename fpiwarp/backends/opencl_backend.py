@@ -1,0 +1,260 @@
+"""The "opencl" backend: the parameter block evaluated by OpenCL kernels.
+
+pyopencl runs ``kernels/fpiwarp.cl`` (math in ``kernels/fpiwarp_map.h``)
+on one OpenCL device: PoCL on a CPU, or any OpenCL GPU. The map's
+parameter block (:mod:`fpiwarp.params`) goes to the device as a
+``__constant float4`` buffer. Programs are built once per context and set
+of build options and cached, never per set of map values: the options name
+the kind of map (each stage's header row: core, number of TPS centers,
+regions, Newton steps, see :func:`kind_options`) and, for images, the kind
+of sampling (dtype, channels, order, border mode). Knowing the kind at
+build time unrolls the stage loop, which lets PoCL vectorize the map
+across work-items. Kernel objects are fetched once per program; device
+buffers are reused across calls of the same shape.
+
+Choosing a device
+-----------------
+The environment variable ``FPIWARP_OPENCL_DEVICE`` (or the ``device``
+argument of :class:`Backend`) is a case-insensitive substring matched
+against ``"platform name: device name"`` and, to tell apart two
+platforms of the same name (Debian's PoCL beside the PyPI one), against
+the platform's version string. Without it the choice is deterministic:
+GPUs first, then accelerators, then CPUs, each sorted by platform name,
+platform version and device name.
+"""
+
+import os
+import threading
+
+import numpy as np
+
+from .. import resources
+from ..params import STAGE_ROWS
+
+ENV_DEVICE = "FPIWARP_OPENCL_DEVICE"
+_SOURCE, _HEADER = "fpiwarp.cl", "fpiwarp_map.h"
+_MODES = {"constant": 0, "edge": 1, "reflect": 2, "wrap": 3}
+_CTYPES = {np.dtype(np.uint8): "uchar", np.dtype(np.uint16): "ushort", np.dtype(np.float32): "float"}
+#: Work-group width (pixels of one row, or points) on CPUs and on other
+#: devices, capped by the device's limit. On PoCL every work-group costs a
+#: fixed overhead, so CPUs get large groups; GPUs prefer small ones.
+LOCAL_X_CPU, LOCAL_X_OTHER = 1024, 128
+
+
+def _import_cl():
+    import pyopencl as cl  # noqa: PLC0415 - optional dependency, imported lazily
+    import pyopencl.cltypes  # noqa: F401, PLC0415 - make_float4
+
+    return cl
+
+
+def _device_label(platform, device):
+    return f"{platform.name.strip()}: {device.name.strip()}"
+
+
+def list_devices():
+    """All (label, platform, device) triples in the deterministic default
+    order (GPUs, accelerators, CPUs; then platform name, version, device)."""
+    cl = _import_cl()
+    kinds = [cl.device_type.GPU, cl.device_type.ACCELERATOR, cl.device_type.CPU]
+    found = []
+    for platform in cl.get_platforms():
+        try:
+            devices = platform.get_devices()
+        except cl.Error:  # a platform without devices
+            continue
+        for device in devices:
+            rank = next((i for i, k in enumerate(kinds) if device.type & k), len(kinds))
+            key = (rank, platform.name, platform.version, device.name)
+            found.append((key, _device_label(platform, device), platform, device))
+    found.sort(key=lambda item: item[0])
+    return [(label, platform, device) for _, label, platform, device in found]
+
+
+def choose_device(wanted=None):
+    """The (label, device) to use; ``wanted`` defaults to $FPIWARP_OPENCL_DEVICE."""
+    if wanted is None:
+        wanted = os.environ.get(ENV_DEVICE) or None
+    devices = list_devices()
+    if not devices:
+        raise RuntimeError("no OpenCL platform with a device found (install a driver, e.g. pocl-opencl-icd)")
+    if wanted is None:
+        label, _, device = devices[0]
+        return label, device
+    needle = wanted.lower()
+    for label, platform, device in devices:
+        if needle in label.lower() or needle in platform.version.lower():
+            return label, device
+    names = "; ".join(label for label, _, _ in devices)
+    raise RuntimeError(f"no OpenCL device matches {wanted!r} (from {ENV_DEVICE} or device=); found: {names}")
+
+
+def probe():
+    """None if an OpenCL device can run the kernels here, else why not."""
+    try:
+        _import_cl()
+    except ImportError as exc:
+        return f"pyopencl is not installed ({exc})"
+    try:
+        choose_device()
+    except Exception as exc:  # driver errors come in many types
+        return str(exc)
+    return None
+
+
+def program_source():
+    """fpiwarp.cl with fpiwarp_map.h pasted in place of its #include, so
+    the program builds the same from a source tree and from a wheel."""
+    text = resources.source("kernels", _SOURCE)
+    include = f'#include "{_HEADER}"'
+    if include not in text:
+        raise RuntimeError(f"{_SOURCE} no longer includes {_HEADER}")
+    return text.replace(include, resources.source("kernels", _HEADER), 1)
+
+
+def kind_options(block):
+    """Build options naming the kind of map: each stage's header row
+    (core, n_centers, n_regions, newton_iters). Values never enter them."""
+    n = int(block[0, 0])
+    heads = block[1 :: STAGE_ROWS][:n]
+    return tuple(f"-DFW_KIND_{k}={','.join(str(int(v)) for v in head)}" for k, head in enumerate(heads))
+
+
+def sampling_options(dtype, channels, order, mode):
+    """Build options (defines) for warp_image on one kind of sampling."""
+    dtype = np.dtype(dtype)
+    top = np.iinfo(dtype).max if dtype.kind == "u" else 0
+    return (
+        f"-DFW_T={_CTYPES[dtype]}",
+        f"-DFW_C={int(channels)}",
+        f"-DFW_INT={int(dtype.kind == 'u')}",
+        f"-DFW_TOP={top}",
+        f"-DFW_ORDER={int(order)}",
+        f"-DFW_MODE={_MODES[mode]}",
+    )
+
+
+class Backend:
+    """map_points and warp_image on one OpenCL device.
+
+    Parameters
+    ----------
+    device : str, optional
+        Substring of ``"platform name: device name"`` (or of the platform
+        version); default ``$FPIWARP_OPENCL_DEVICE``, else the first device
+        in the deterministic order of :func:`list_devices`.
+    """
+
+    name = "opencl"
+    #: Options every build gets (no fast-math: results must match the reference).
+    BASE_OPTIONS = ()
+
+    def __init__(self, device=None):
+        cl = _import_cl()
+        self._cl = cl
+        self.device_label, self.device = choose_device(device)
+        self.context = cl.Context([self.device])
+        self.queue = cl.CommandQueue(self.context)
+        self._source = program_source()
+        #: points travel as float64 where the device reads doubles (no host conversions)
+        self.has_fp64 = "cl_khr_fp64" in self.device.extensions
+        self._point_options = ("-DFW_POINT=double", "-DFW_POINT_DOUBLE=1") if self.has_fp64 else ()
+        is_cpu = bool(self.device.type & cl.device_type.CPU)
+        #: on a CPU device, map_points runs on the caller's arrays in place
+        #: (USE_HOST_PTR) instead of copying 32 bytes per point in and out
+        self.zero_copy = is_cpu and bool(self.device.host_unified_memory)
+        self.local_x = min(LOCAL_X_CPU if is_cpu else LOCAL_X_OTHER, self.device.max_work_group_size)
+        self._kernels = {}  # build options -> {kernel name: Kernel}
+        self._buffers = {}  # (role, nbytes) -> Buffer
+        self._lock = threading.Lock()
+
+    def __repr__(self):
+        return f"<fpiwarp opencl backend on {self.device_label!r}>"
+
+    # -- programs, kernels and buffers, all cached --------------------------
+    def kernel(self, name, options=()):
+        """Kernel ``name`` of the program built with ``options``; builds and
+        fetches once per options."""
+        options = tuple(self.BASE_OPTIONS) + tuple(options)
+        kernels = self._kernels.get(options)
+        if kernels is None:
+            program = self._cl.Program(self.context, self._source).build(options=list(options))
+            kernels = {k.function_name: k for k in program.all_kernels()}
+            self._kernels[options] = kernels
+        return kernels[name]
+
+    def _buffer(self, role, nbytes):
+        """A device buffer for ``role`` of exactly ``nbytes``, reused across
+        calls; one per role (a new size replaces the old buffer)."""
+        key = (role, nbytes)
+        buf = self._buffers.get(key)
+        if buf is None:
+            for old in [k for k in self._buffers if k[0] == role]:
+                del self._buffers[old]
+            buf = self._cl.Buffer(self.context, self._cl.mem_flags.READ_WRITE, max(nbytes, 4))
+            self._buffers[key] = buf
+        return buf
+
+    def _upload_block(self, transform):
+        """Upload the block of ``transform``; return it and its kind options."""
+        block = np.ascontiguousarray(transform.params(), dtype=np.float32)
+        buf = self._buffer("block", block.nbytes)
+        self._cl.enqueue_copy(self.queue, buf, block)
+        return buf, kind_options(block)
+
+    # -- the backend interface ---------------------------------------------
+    def map_points(self, transform, points):
+        shape = points.shape
+        dtype = np.float64 if self.has_fp64 else np.float32
+        pts = np.ascontiguousarray(points.reshape(-1, 2), dtype=dtype)
+        n = pts.shape[0]
+        out = np.empty((n, 2), dtype=dtype)
+        if n == 0:
+            return out.astype(np.float64).reshape(shape)
+        if n >= 2**30:
+            raise ValueError(f"at most 2**30 points per call on the opencl backend, got {n}")
+        with self._lock:
+            block, kind = self._upload_block(transform)
+            kern = self.kernel("map_points", kind + self._point_options + (f"-DFW_LOCAL_X={self.local_x}",))
+            if self.zero_copy:
+                mf = self._cl.mem_flags
+                src = self._cl.Buffer(self.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pts)
+                dst = self._cl.Buffer(self.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
+            else:
+                src = self._buffer("points_in", pts.nbytes)
+                dst = self._buffer("points_out", out.nbytes)
+                self._cl.enqueue_copy(self.queue, src, pts)
+            kern.set_args(block, src, dst, np.int32(n))
+            total = -(-n // self.local_x) * self.local_x
+            self._cl.enqueue_nd_range_kernel(self.queue, kern, (total,), (self.local_x,))
+            if self.zero_copy:  # mapping makes the results visible in `out`
+                mapped, event = self._cl.enqueue_map_buffer(
+                    self.queue, dst, self._cl.map_flags.READ, 0, out.shape, out.dtype
+                )
+                event.wait()
+                del mapped
+            else:
+                self._cl.enqueue_copy(self.queue, out, dst)
+            self.queue.finish()
+        return out.astype(np.float64, copy=False).reshape(shape)
+
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval):
+        h, w, c = image.shape
+        oh, ow = output_shape
+        if max(h * w, oh * ow) * c >= 2**31:
+            raise ValueError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
+        out = np.empty((oh, ow, c), dtype=image.dtype)
+        cval4 = self._cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
+        with self._lock:
+            block, kind = self._upload_block(transform.inverse)
+            options = kind + sampling_options(image.dtype, c, order, mode) + (f"-DFW_LOCAL_X={self.local_x}",)
+            kern = self.kernel("warp_image", options)
+            src = self._buffer("image_in", image.nbytes)
+            dst = self._buffer("image_out", out.nbytes)
+            self._cl.enqueue_copy(self.queue, src, image)
+            kern.set_args(block, src, np.int32(w), np.int32(h), dst, np.int32(ow), np.int32(oh), cval4)
+            cols = -(-ow // self.local_x) * self.local_x
+            self._cl.enqueue_nd_range_kernel(self.queue, kern, (cols, oh), (self.local_x, 1))
+            self._cl.enqueue_copy(self.queue, out, dst)
+            self.queue.finish()
+        return out

@@ -1,0 +1,83 @@
+/* fpiwarp.cl: the OpenCL kernels of fpiwarp's "opencl" backend.
+ *
+ * All math lives in fpiwarp_map.h (mirroring fpiwarp/params.py and
+ * fpiwarp/_sampling.py). The parameter block is a __constant float4
+ * buffer; its values never change the program. A program is built once
+ * per kind of map (FW_KIND_k defines, optional) and, for warp_image, kind
+ * of sampling (FW_T, FW_C, FW_INT, FW_TOP, FW_ORDER, FW_MODE): see the
+ * header. Points and pixels are read and written as scalars, so that CPU
+ * drivers can vectorize across work-items.
+ */
+#include "fpiwarp_map.h"
+
+/* FW_POINT: the element type of map_points' input and output, double
+ * where the device has fp64 (no conversion passes on the host), else float.
+ * The math is float32 either way. */
+#ifndef FW_POINT
+#define FW_POINT float
+#endif
+#if FW_POINT_DOUBLE
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#endif
+
+#ifndef FW_LOCAL_X
+#define FW_LOCAL_X 64
+#endif
+
+/* out[i] = map(pts[i]) for i < n; points are interleaved (x, y).
+ *
+ * Work-groups of FW_LOCAL_X points (the host rounds the global size up;
+ * padding work-items redo the last point, writing the same value), in
+ * phases split by barriers: read the group's x, then y, into local
+ * arrays, map them, write x, then y. On a CPU each phase becomes its own
+ * loop over work-items and each vectorizes: reading or writing an (x, y)
+ * pair in one phase makes a two-lane vector access that stops PoCL's
+ * vectorizer. */
+__kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
+void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
+                __global FW_POINT *restrict out, int n)
+{
+    __local float px[FW_LOCAL_X], py[FW_LOCAL_X];
+    int i = get_global_id(0), l = get_local_id(0);
+    int at = min(i, n - 1); /* padding work-items repeat the last point */
+    px[l] = (float)pts[2 * at];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    py[l] = (float)pts[2 * at + 1];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    fw_c w = fw_map(block, fw_cx(px[l], py[l]));
+    px[l] = w.re;
+    py[l] = w.im;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    out[2 * at] = px[l];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    out[2 * at + 1] = py[l];
+}
+
+#ifdef FW_T
+/* dst (oh x ow x FW_C) = src (h x w x FW_C) sampled at map(x, y) for every
+ * output pixel center (x, y); block holds the inverse of the user's map.
+ *
+ * Work-groups are FW_LOCAL_X x 1 pixels of a row (the host rounds the
+ * global size up). Two phases split by a barrier: the map for the whole
+ * group into local memory, then the sampling. On a CPU, PoCL compiles each
+ * phase into its own loop over work-items, so the map (pure arithmetic)
+ * vectorizes even though the gathers of the sampling do not. */
+__kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
+void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int h,
+                __global FW_T *restrict dst, int ow, int oh, float4 cval4)
+{
+    __local float pos_x[FW_LOCAL_X], pos_y[FW_LOCAL_X];
+    int ox = get_global_id(0), oy = get_global_id(1), l = get_local_id(0);
+    fw_c s = fw_map(block, fw_cx((float)ox, (float)oy));
+    pos_x[l] = s.re;
+    pos_y[l] = s.im;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (ox >= ow)
+        return;
+    fw_px cval = {cval4.x, cval4.y, cval4.z, cval4.w};
+    fw_px v = fw_sample(src, w, h, fw_cx(pos_x[l], pos_y[l]), cval);
+    int at = (oy * ow + ox) * FW_C;
+#define FW_STORE(k, _a, _b) dst[at + k] = fw_to_dtype(v.c##k);
+    FW_EACH_C(FW_STORE, _, _)
+}
+#endif

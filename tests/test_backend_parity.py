@@ -1,0 +1,32 @@
+"""Rules every backend shares, checked on each backend that can run."""
+
+import numpy as np
+import pytest
+
+import fpiwarp
+from fpiwarp import FPI, RLinear
+
+
+@pytest.mark.parametrize("mode", ["constant", "edge", "reflect", "wrap"])
+def test_far_away_source_positions_get_cval_in_every_mode(any_backend, mode):
+    """Positions beyond 2**24 px count as outside, like non-finite ones."""
+    img = np.full((6, 7, 3), 9, np.uint8)
+    far = RLinear(1, 0, -(2.0**25))
+    out = fpiwarp.warp_image(img, far, mode=mode, cval=[1, 2, 3], backend=any_backend)
+    assert np.array_equal(out, np.broadcast_to([1, 2, 3], (6, 7, 3)))
+    near = RLinear(1, 0, -(2.0**20))  # far, but within range: the border mode decides
+    out = fpiwarp.warp_image(img, near, mode=mode, cval=[1, 2, 3], backend=any_backend)
+    expected = [1, 2, 3] if mode == "constant" else [9, 9, 9]
+    assert np.array_equal(out, np.broadcast_to(expected, (6, 7, 3)))
+
+
+def test_backends_agree_with_the_reference_on_an_fpi(any_backend):
+    f = FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [60, -2], [66, 50], [-3, 44]])
+    y, x = np.mgrid[0:48, 0:64]
+    img = np.stack([x * 4, y * 5, (x + y) * 2], axis=-1).astype(np.uint8)
+    ref = fpiwarp.warp_image(img, f, backend="numpy")
+    out = fpiwarp.warp_image(img, f, backend=any_backend)
+    diff = np.abs(out.astype(int) - ref.astype(int))
+    assert np.mean(diff <= 1) >= 0.998
+    pts = np.random.default_rng(0).uniform(0, 64, size=(100, 2))
+    assert np.allclose(fpiwarp.map_points(f, pts, backend=any_backend), f(pts), rtol=1e-5, atol=1e-4)
