@@ -9,6 +9,9 @@
     run stopped.
 ``fpiwarp backends``
     list the backends and why any of them cannot run here.
+``fpiwarp preview IMAGE [--src ... --dst ... [--edges I,J] | --spec SPEC.json] [--screenshot OUT.png]``
+    the interactive viewer (drag the target points); with ``--screenshot``
+    one frame rendered offscreen (no display needed) and written.
 
 A user's mistake (a degenerate quad, a bad spec, a missing file, an unknown
 backend, an output that exists) gives one line on stderr and exit status 1;
@@ -229,6 +232,49 @@ def cmd_backends(args):
     return 0
 
 
+def _preview_transform(args, image):
+    """The map to show; the source corners default to the image's, and
+    with no map at all the viewer starts from the identity."""
+    if args.spec is None and args.src is None:
+        h, w = image.shape[:2]
+        corners = [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]]
+        if args.dst is None and args.edges is None:
+            return FPI(corners, corners)
+        args.src = ",".join(str(v) for p in corners for v in p)
+    return _transform_from_args(args)
+
+
+def cmd_preview(args):
+    """Show the warp in a window, or render one frame with --screenshot."""
+    if not Path(args.input).exists():
+        raise FileNotFoundError(f"no such file: {args.input}")
+    if args.screenshot is not None:
+        _check_output(args.input, args.screenshot, args.overwrite)
+    image, info = read_image(args.input)
+    transform = _preview_transform(args, image)
+    overlays = () if args.no_overlay else ("handles", "outline")
+    if args.screenshot is not None:
+        from .gl import render_image
+
+        try:
+            frame = render_image(image, transform, overlays=overlays, order=args.order)
+        except RuntimeError as exc:  # no GL driver: create_context's reason
+            raise BackendUnavailableError(f"cannot render offscreen: {exc}") from None
+        keep = info if frame.shape[2:] == image.shape[2:] else None
+        check_writable(args.screenshot, frame.dtype, 1 if frame.ndim == 2 else frame.shape[2], keep)
+        write_image(args.screenshot, frame, keep, overwrite=args.overwrite)
+        print(f"wrote {args.screenshot}")
+        return 0
+    from .preview import run
+
+    name = Path(args.input).stem
+    editor = run(image, transform, info=info, name=name, export_path=f"{name}-warped{Path(args.input).suffix}",
+                 overlays=overlays, order=args.order)
+    for path in editor.saved:
+        print(f"wrote {path}")
+    return 0
+
+
 # --------------------------------------------------------------------------
 # Parser and entry point
 
@@ -288,6 +334,27 @@ def build_parser():
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_warp_options(p)
     p.set_defaults(func=cmd_batch)
+
+    p = sub.add_parser(
+        "preview",
+        help="interactive viewer: drag the target points",
+        description="Show IMAGE warped by a 4-point map and drag the target points live (needs a display "
+        "and OpenGL 3.3; pip install moderngl-window). Keys: H handles, O outline, C checkerboard, "
+        "D distortion heat map, N overlays off/on, M mesh/per-pixel drawing, click an edge to constrain it "
+        "(X clears), F fit, R reset, S save the spec, E export the warped image, Q quit. With --screenshot, render one "
+        "frame offscreen at the image's size (no display needed), write it and exit.",
+    )
+    p.add_argument("input", help="image file to show (never modified)")
+    p.add_argument("--src", metavar="X1,Y1,...,X4,Y4", help="four source corners (default the image's)")
+    p.add_argument("--dst", metavar="X1,Y1,...,X4,Y4", help="where the four corners go")
+    p.add_argument("--edges", metavar="I,J", help="constrain edges I and J (edge k joins corner k and k+1)")
+    p.add_argument("--spec", metavar="SPEC.json", help="a JSON spec instead of --src/--dst")
+    p.add_argument("--screenshot", metavar="OUT.png", help="render one frame offscreen, write it and exit")
+    p.add_argument("--no-overlay", action="store_true",
+                   help="no handles or outline: the screenshot is exactly the warped image")
+    p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
+    p.add_argument("--overwrite", action="store_true", help="replace the screenshot if it exists")
+    p.set_defaults(func=cmd_preview)
 
     p = sub.add_parser("backends", help="list backends and why any cannot run")
     p.set_defaults(func=cmd_backends)
