@@ -4,8 +4,6 @@ They validate input once, then hand normalized arrays to a backend from
 :mod:`fpiwarp.backends`, so every backend sees the same contract.
 """
 
-import numbers
-
 import numpy as np
 
 from ._sampling import DTYPES, MODES, ORDERS
@@ -66,7 +64,11 @@ def check_output_shape(output_shape, image):
 
 
 def check_cval(cval, channels):
-    arr = np.asarray(cval, dtype=np.float64)
+    """cval as float64 (channels,): a finite number or one per channel."""
+    try:
+        arr = np.asarray(cval, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"cval must be a finite number or one per channel ({channels}), got {cval!r}") from None
     if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != channels) or not np.all(np.isfinite(arr)):
         raise ValueError(f"cval must be a finite number or one per channel ({channels}), got {cval!r}")
     return np.broadcast_to(arr, (channels,)).copy()
@@ -98,10 +100,7 @@ def warp_image(image, transform, output_shape=None, *, order=1, mode="constant",
         raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-    if isinstance(cval, numbers.Number) or np.ndim(cval) == 0 or np.ndim(cval) == 1:
-        cval = check_cval(cval, img.shape[2])
-    else:
-        raise ValueError(f"cval must be a number or one per channel, got {cval!r}")
+    cval = check_cval(cval, img.shape[2])
     shape = check_output_shape(output_shape, img)
     out = get_backend(backend).warp_image(
         np.ascontiguousarray(img), transform, shape, order=order, mode=mode, cval=cval
