@@ -4,9 +4,10 @@
  * fpiwarp/_sampling.py). The parameter block is a __constant float4
  * buffer; its values never change the program. A program is built once
  * per kind of map (FW_KIND_k defines, optional) and, for warp_image, kind
- * of sampling (FW_T, FW_C, FW_INT, FW_TOP, FW_ORDER, FW_MODE): see the
- * header. Points and pixels are read and written as scalars, so that CPU
- * drivers can vectorize across work-items.
+ * of sampling (FW_T, FW_C, FW_INT, FW_TOP, FW_ORDER, FW_MODE, FW_VN): see
+ * the header. Points, and the map of each pixel, are computed in scalars,
+ * so that CPU drivers vectorize them across work-items; the sampling is
+ * written in vector types of FW_VN lanes instead (see the header for why).
  */
 #include "fpiwarp_map.h"
 
@@ -58,26 +59,35 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
  * output pixel center (x, y); block holds the inverse of the user's map.
  *
  * Work-groups are FW_LOCAL_X x 1 pixels of a row (the host rounds the
- * global size up). Two phases split by a barrier: the map for the whole
- * group into local memory, then the sampling. On a CPU, PoCL compiles each
- * phase into its own loop over work-items, so the map (pure arithmetic)
- * vectorizes even though the gathers of the sampling do not. */
+ * global size up; padding work-items redo the row's last pixel, writing
+ * the same values). Two phases split by a barrier: the map, one pixel per
+ * work-item, into local memory (on a CPU, PoCL compiles it into a loop
+ * over work-items and vectorizes it); then the sampling, FW_VN pixels per
+ * work-item in vector types, by the first FW_LOCAL_X / FW_VN work-items. */
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
 void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int h,
-                __global FW_T *restrict dst, int ow, int oh, float4 cval4)
+                __global FW_T *restrict dst, int ow, int oh, float4 cval)
 {
     __local float pos_x[FW_LOCAL_X], pos_y[FW_LOCAL_X];
-    int ox = get_global_id(0), oy = get_global_id(1), l = get_local_id(0);
-    fw_c s = fw_map(block, fw_cx((float)ox, (float)oy));
+    int l = get_local_id(0), oy = get_global_id(1);
+    int gx0 = get_group_id(0) * FW_LOCAL_X; /* the group's first pixel */
+    fw_c s = fw_map(block, fw_cx((float)min(gx0 + l, ow - 1), (float)oy));
     pos_x[l] = s.re;
     pos_y[l] = s.im;
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (ox >= ow)
+    if (l >= FW_LOCAL_X / FW_VN)
         return;
-    fw_px cval = {cval4.x, cval4.y, cval4.z, cval4.w};
-    fw_px v = fw_sample(src, w, h, fw_cx(pos_x[l], pos_y[l]), cval);
-    int at = (oy * ow + ox) * FW_C;
-#define FW_STORE(k, _a, _b) dst[at + k] = fw_to_dtype(v.c##k);
-    FW_EACH_C(FW_STORE, _, _)
+    fw_fv sx = FW_VLOAD(pos_x + FW_VN * l), sy = FW_VLOAD(pos_y + FW_VN * l);
+    fw_pxv v = fw_sample(src, w, h, sx, sy, cval);
+#define FW_RESULT(k, _) fw_ov res##k = FW_TO_DTYPE(v.c##k);
+    FW_EACH_C(FW_RESULT, _)
+    int row = oy * ow;
+#define FW_STORE_C(k, lane) dst[at + k] = (FW_T)FW_LANE(res##k, lane);
+#define FW_STORE_LANE(lane, _)                                      \
+    {                                                               \
+        int at = (row + min(gx0 + FW_VN * l + lane, ow - 1)) * FW_C; \
+        FW_EACH_C(FW_STORE_C, lane)                                 \
+    }
+    FW_EACH_LANE(FW_STORE_LANE, _)
 }
 #endif

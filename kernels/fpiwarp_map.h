@@ -22,8 +22,8 @@
  *     stages, its "kind". With them the stage loop unrolls and branches
  *     fold away; without them fw_map reads the kind from the block at run
  *     time. Values (coefficients) are never build options.
- *   FW_ORDER 0|1|3, FW_MODE 0..3, FW_T, FW_C, FW_INT, FW_TOP: sampling
- *     (see the block guarded by FW_T at the end).
+ *   FW_ORDER 0|1|3, FW_MODE 0..3, FW_T, FW_C, FW_INT, FW_TOP, FW_VN:
+ *     sampling (see the block guarded by FW_T at the end).
  */
 #ifndef FPIWARP_MAP_H
 #define FPIWARP_MAP_H
@@ -234,30 +234,50 @@ FW_FN fw_c fw_map(fw_block_t block, fw_c z)
 /* source positions beyond 2^24 px in x or y (or not finite) are outside */
 #define FW_COORD_LIMIT 16777216.0f
 
-/* Python's i mod n, in [0, n) */
-FW_FN int fw_mod(int i, int n)
-{
-    int m = i % n;
-    return m < 0 ? m + n : m;
-}
-
-FW_FN bool fw_inside(int i, int n) { return (i >= 0) & (i < n); }
-
-/* Up to four channel values. A struct, not an array or a vector type:
- * small arrays become LLVM vectors, which stop PoCL's vectorizer. */
-typedef struct {
-    float c0, c1, c2, c3;
-} fw_px;
-
 /* The rest needs the image type: FW_T (uchar, ushort or float) with FW_C
  * interleaved channels, FW_INT 1 for integer types and FW_TOP their
- * largest value, FW_ORDER and FW_MODE.
+ * largest value, FW_ORDER and FW_MODE; FW_VN (1 or 8, default 1), the
+ * number of pixels one work-item samples at once.
  *
- * Taps and channels are written out by the FW_EACH_* macros into scalar
- * variables (x0, x1, ...; acc.c0, ...): PoCL vectorizes across work-items
- * only loop-free kernel bodies of scalars, and it does not unroll small
- * loops before trying. */
+ * Sampling is written for FW_VN lanes with OpenCL vector types (floatN,
+ * intN; float and int when FW_VN is 1). On CPUs the host asks for 8:
+ * PoCL vectorizes across work-items only loop bodies without vector
+ * instructions, and before it does, LLVM's SLP vectorizer pairs the
+ * sampling's many alike scalar operations (x and y, channels, taps) into
+ * 2-lane vectors, which stop it; explicit 8-lane code does not depend on
+ * either. Taps, channels and lanes are written out by the FW_EACH_*
+ * macros into separate variables (x0, x1, ...; acc0, ...). */
 #ifdef FW_T
+#ifndef FW_VN
+#define FW_VN 1
+#endif
+#if FW_VN == 1
+typedef float fw_fv;
+typedef int fw_iv;
+typedef uint fw_uv;
+#define FW_EACH_LANE(X, a) X(0, a)
+#define FW_LANE(v, k) (v)
+#define FW_VLOAD(p) (*(p))
+#define FW_CONVERT(type, v) convert_##type(v)
+#elif FW_VN == 8
+typedef float8 fw_fv;
+typedef int8 fw_iv;
+typedef uint8 fw_uv;
+#define FW_EACH_LANE(X, a) X(0, a) X(1, a) X(2, a) X(3, a) X(4, a) X(5, a) X(6, a) X(7, a)
+#define FW_LANE(v, k) (v).s##k
+#define FW_VLOAD(p) vload8(0, p)
+#define FW_CONVERT(type, v) convert_##type##8(v)
+#else
+#error "FW_VN must be 1 or 8"
+#endif
+/* expr(k), a scalar expression of lane k, for every lane as one vector */
+#if FW_VN == 1
+#define FW_GATHER(type, expr) ((type)(expr(0)))
+#else
+#define FW_GATHER(type, expr) ((type)(expr(0) FW_GATHER_REST(expr)))
+#define FW_GATHER_REST(expr) , expr(1), expr(2), expr(3), expr(4), expr(5), expr(6), expr(7)
+#endif
+
 #if FW_ORDER == 0
 #define FW_EACH_TAP(X, a) X(0, a)
 #define FW_EACH_ROW(X) X(0)
@@ -269,24 +289,59 @@ typedef struct {
 #define FW_EACH_ROW(X) X(0) X(1) X(2) X(3)
 #endif
 #if FW_C == 1
-#define FW_EACH_C(X, a, b) X(0, a, b)
+#define FW_EACH_C(X, a) X(0, a)
 #elif FW_C == 2
-#define FW_EACH_C(X, a, b) X(0, a, b) X(1, a, b)
+#define FW_EACH_C(X, a) X(0, a) X(1, a)
 #elif FW_C == 3
-#define FW_EACH_C(X, a, b) X(0, a, b) X(1, a, b) X(2, a, b)
+#define FW_EACH_C(X, a) X(0, a) X(1, a) X(2, a)
 #else
-#define FW_EACH_C(X, a, b) X(0, a, b) X(1, a, b) X(2, a, b) X(3, a, b)
+#define FW_EACH_C(X, a) X(0, a) X(1, a) X(2, a) X(3, a)
 #endif
 
+/* FW_WORD_BITS: where a pixel's channels fit in 32 bits (uchar with up to
+ * 4 channels, ushort with up to 2) on a little-endian device, a tap is one
+ * 32-bit load, channel k being bits [k * FW_WORD_BITS, ...). The load may
+ * read up to 3 bytes past the image: the host allocates 4 more. */
+#if defined(__ENDIAN_LITTLE__) && FW_INT && FW_TOP == 255 && FW_C <= 4
+#define FW_WORD_BITS 8
+#elif defined(__ENDIAN_LITTLE__) && FW_INT && FW_TOP == 65535 && FW_C <= 2
+#define FW_WORD_BITS 16
+#else
+#define FW_WORD_BITS 0
+#endif
+#if FW_WORD_BITS
+/* a packed struct: the portable unaligned 32-bit load */
+typedef struct __attribute__((packed)) {
+    uint v;
+} fw_word;
+#endif
+
+/* floor(v) as an int, branch-free; exact for |v| <= 2^24, which
+ * fw_sample guarantees (PoCL's floor() has branches) */
+FW_FN fw_iv fw_floor(fw_fv v)
+{
+    fw_iv i = FW_CONVERT(int, v);
+    return select(i, i - 1, FW_CONVERT(float, i) > v);
+}
+
+/* Python's i mod n, in [0, n) */
+FW_FN fw_iv fw_mod(fw_iv i, int n)
+{
+    fw_iv m = i % n;
+    return select(m, m + n, m < 0);
+}
+
+FW_FN fw_iv fw_inside(fw_iv i, int n) { return (i >= 0) & (i < n); }
+
 /* _sampling.border_index: a valid index for tap i along an axis of n */
-FW_FN int fw_border(int i, int n)
+FW_FN fw_iv fw_border(fw_iv i, int n)
 {
 #if FW_MODE == FW_MODE_WRAP
     return fw_mod(i, n);
 #elif FW_MODE == FW_MODE_REFLECT
     int period = max(2 * (n - 1), 1); /* n == 1 gives 0 */
-    int m = fw_mod(i, period);
-    return m >= n ? period - m : m;
+    fw_iv m = fw_mod(i, period);
+    return select(m, period - m, m >= n);
 #else /* constant and edge clamp; constant also checks fw_inside */
     return clamp(i, 0, n - 1);
 #endif
@@ -296,101 +351,96 @@ FW_FN int fw_border(int i, int n)
  * weights p##w0.. along one axis, for coordinate `coord` */
 #if FW_ORDER == 0
 #define FW_TAPS_1D(coord, p)                      \
-    int p##0 = (int)floor((coord) + 0.5f);        \
-    float p##w0 = 1.0f;
+    fw_iv p##0 = fw_floor((coord) + 0.5f);        \
+    fw_fv p##w0 = 1.0f;
 #else
 #define FW_TAPS_1D(coord, p)                      \
-    float p##base = floor(coord);                 \
-    float p##t = (coord) - p##base;               \
+    fw_iv p##base = fw_floor(coord);              \
+    fw_fv p##t = (coord) - FW_CONVERT(float, p##base); \
     FW_TAPS_1D_REST(p)
 #if FW_ORDER == 1
 #define FW_TAPS_1D_REST(p)                        \
-    int p##0 = (int)p##base, p##1 = p##0 + 1;     \
-    float p##w0 = 1.0f - p##t, p##w1 = p##t;
+    fw_iv p##0 = p##base, p##1 = p##0 + 1;        \
+    fw_fv p##w0 = 1.0f - p##t, p##w1 = p##t;
 #else /* Keys' cubic convolution, a = -0.5 (_sampling._cubic_weights) */
 #define FW_TAPS_1D_REST(p)                                                   \
-    int p##1 = (int)p##base, p##0 = p##1 - 1, p##2 = p##1 + 1, p##3 = p##1 + 2; \
-    float p##t2 = p##t * p##t, p##t3 = p##t2 * p##t;                         \
-    float p##w0 = -0.5f * p##t3 + p##t2 - 0.5f * p##t;                      \
-    float p##w1 = 1.5f * p##t3 - 2.5f * p##t2 + 1.0f;                       \
-    float p##w2 = -1.5f * p##t3 + 2.0f * p##t2 + 0.5f * p##t;               \
-    float p##w3 = 0.5f * p##t3 - 0.5f * p##t2;
+    fw_iv p##1 = p##base, p##0 = p##1 - 1, p##2 = p##1 + 1, p##3 = p##1 + 2; \
+    fw_fv p##t2 = p##t * p##t, p##t3 = p##t2 * p##t;                         \
+    fw_fv p##w0 = -0.5f * p##t3 + p##t2 - 0.5f * p##t;                      \
+    fw_fv p##w1 = 1.5f * p##t3 - 2.5f * p##t2 + 1.0f;                       \
+    fw_fv p##w2 = -1.5f * p##t3 + 2.0f * p##t2 + 0.5f * p##t;               \
+    fw_fv p##w3 = 0.5f * p##t3 - 0.5f * p##t2;
 #endif
 #endif
 
-/* _sampling.sample at one position: the values before rounding. A tap's
- * index is always made valid, so its load is unconditional; in constant
- * mode the value is then replaced by cval outside the image. */
-FW_FN fw_px fw_sample(__global const FW_T *img, int w, int h, fw_c s, fw_px cval)
-{
-    /* beyond FW_COORD_LIMIT (or NaN) counts as outside: cval */
-    bool finite = (fabs(s.re) <= FW_COORD_LIMIT) & (fabs(s.im) <= FW_COORD_LIMIT);
-    float x = finite ? s.re : 0.0f;
-    float y = finite ? s.im : 0.0f;
-    FW_TAPS_1D(x, x)
-    FW_TAPS_1D(y, y)
-    fw_px acc = {0.0f, 0.0f, 0.0f, 0.0f};
-    /* the common case first: every tap inside the image, where each border
-     * mode is the identity (same sums as below, fewer operations) */
-#if FW_ORDER == 0
-    bool interior = finite & fw_inside(x0, w) & fw_inside(y0, h);
-#elif FW_ORDER == 1
-    bool interior = finite & (x0 >= 0) & (x1 < w) & (y0 >= 0) & (y1 < h);
+/* The taps of fw_sample: tap (i, j) adds its weight times its value to
+ * acc##k for each channel k; a tap's value is one gather per channel, or
+ * one gather of 32-bit words for all channels (FW_WORD_BITS). */
+#if FW_WORD_BITS
+#define FW_TAP_LOAD(at) fw_uv word = FW_GATHER(fw_uv, FW_WORD_AT);
+#define FW_WORD_AT(k) ((__global const fw_word *)(img + FW_LANE(at, k)))->v
+#define FW_VALUE(k, at) FW_CONVERT(float, (word >> (FW_WORD_BITS * k)) & (uint)FW_TOP)
 #else
-    bool interior = finite & (x0 >= 0) & (x3 < w) & (y0 >= 0) & (y3 < h);
+#define FW_TAP_LOAD(at)
+#define FW_VALUE(k, at) FW_GATHER(fw_fv, FW_VALUE_AT_##k)
+#define FW_VALUE_AT_0(j) (float)img[FW_LANE(at, j) + 0]
+#define FW_VALUE_AT_1(j) (float)img[FW_LANE(at, j) + 1]
+#define FW_VALUE_AT_2(j) (float)img[FW_LANE(at, j) + 2]
+#define FW_VALUE_AT_3(j) (float)img[FW_LANE(at, j) + 3]
 #endif
-#define FW_CHANNEL_FAST(k, at, _) acc.c##k += wgt * (float)img[(at) + k];
-#define FW_TAP_FAST(i, j)                           \
-    {                                               \
-        float wgt = y##w##j * x##w##i;              \
-        int at = (y##j * w + x##i) * FW_C;          \
-        FW_EACH_C(FW_CHANNEL_FAST, at, _)           \
-    }
-#define FW_ROW_TAPS_FAST(j) FW_EACH_TAP(FW_TAP_FAST, j)
-    if (interior) {
-        FW_EACH_ROW(FW_ROW_TAPS_FAST)
-    } else {
-#define FW_INDEX(i, _)                   \
-    int col##i = fw_border(x##i, w);     \
-    bool col_in##i = fw_inside(x##i, w); \
-    int row##i = fw_border(y##i, h);     \
-    bool row_in##i = fw_inside(y##i, h);
-        FW_EACH_TAP(FW_INDEX, _)
 #if FW_MODE == FW_MODE_CONSTANT
-#define FW_CHANNEL(k, at, in) acc.c##k += wgt * ((in) ? (float)img[(at) + k] : cval.c##k);
+#define FW_CHANNEL(k, _) acc##k += wgt * select((fw_fv)(cval.s##k), FW_VALUE(k, at), in);
 #else
-#define FW_CHANNEL(k, at, in) acc.c##k += wgt * (float)img[(at) + k];
+#define FW_CHANNEL(k, _) acc##k += wgt * FW_VALUE(k, at);
 #endif
-#define FW_TAP(i, j)                                       \
-    {                                                      \
-        float wgt = y##w##j * x##w##i;                     \
-        int at = (row##j * w + col##i) * FW_C;             \
-        FW_EACH_C(FW_CHANNEL, at, row_in##j & col_in##i)   \
+#define FW_INDEX(i, _)                               \
+    fw_iv col##i = fw_border(x##i, w) * FW_C;        \
+    fw_iv col_in##i = fw_inside(x##i, w);            \
+    fw_iv row##i = fw_border(y##i, h) * (w * FW_C);  \
+    fw_iv row_in##i = fw_inside(y##i, h);
+#define FW_TAP(i, j)                                 \
+    {                                                \
+        fw_fv wgt = y##w##j * x##w##i;               \
+        fw_iv at = row##j + col##i;                  \
+        fw_iv in = row_in##j & col_in##i;            \
+        FW_TAP_LOAD(at)                              \
+        FW_EACH_C(FW_CHANNEL, _)                     \
     }
 #define FW_ROW_TAPS(j) FW_EACH_TAP(FW_TAP, j)
-        FW_EACH_ROW(FW_ROW_TAPS)
-    }
-    fw_px out = {finite ? acc.c0 : cval.c0, finite ? acc.c1 : cval.c1,
-                 finite ? acc.c2 : cval.c2, finite ? acc.c3 : cval.c3};
+/* channel values at FW_VN pixels; c##k for k < FW_C are used */
+typedef struct {
+    fw_fv c0, c1, c2, c3;
+} fw_pxv;
+
+/* _sampling.sample at FW_VN positions (sx, sy): the values before
+ * rounding. Branch-free: every tap's index is made valid, so its load is
+ * unconditional; in constant mode the value is then replaced by cval
+ * outside the image. */
+FW_FN fw_pxv fw_sample(__global const FW_T *img, int w, int h, fw_fv sx, fw_fv sy, float4 cval)
+{
+    /* beyond FW_COORD_LIMIT (or NaN) counts as outside: cval */
+    fw_iv finite = (fabs(sx) <= FW_COORD_LIMIT) & (fabs(sy) <= FW_COORD_LIMIT);
+    fw_fv x = select((fw_fv)0.0f, sx, finite);
+    fw_fv y = select((fw_fv)0.0f, sy, finite);
+    FW_TAPS_1D(x, x)
+    FW_TAPS_1D(y, y)
+    FW_EACH_TAP(FW_INDEX, _)
+    fw_fv acc0 = 0.0f, acc1 = 0.0f, acc2 = 0.0f, acc3 = 0.0f;
+    FW_EACH_ROW(FW_ROW_TAPS)
+    fw_pxv out = {select((fw_fv)cval.s0, acc0, finite), select((fw_fv)cval.s1, acc1, finite),
+                  select((fw_fv)cval.s2, acc2, finite), select((fw_fv)cval.s3, acc3, finite)};
     return out;
-#undef FW_INDEX
-#undef FW_CHANNEL
-#undef FW_TAP
-#undef FW_ROW_TAPS
-#undef FW_CHANNEL_FAST
-#undef FW_TAP_FAST
-#undef FW_ROW_TAPS_FAST
 }
 
-/* _sampling.to_dtype: floor(v + 0.5) clipped for integers, as is for floats */
-FW_FN FW_T fw_to_dtype(float v)
-{
+/* _sampling.to_dtype: floor(v + 0.5) clipped for integers (clamping first
+ * makes the conversion's truncation a floor), as is for floats */
 #if FW_INT
-    return (FW_T)clamp(floor(v + 0.5f), 0.0f, (float)FW_TOP);
+typedef fw_iv fw_ov;
+#define FW_TO_DTYPE(v) FW_CONVERT(int, clamp((v) + 0.5f, 0.0f, (float)FW_TOP))
 #else
-    return (FW_T)v;
+typedef fw_fv fw_ov;
+#define FW_TO_DTYPE(v) (v)
 #endif
-}
 #endif /* FW_T */
 
 #endif /* FPIWARP_MAP_H */

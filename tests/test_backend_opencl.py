@@ -250,6 +250,33 @@ def test_warp_channels(opencl_backend, rng, sample_fpi, channels):
         assert got.shape == image.shape[:2]
 
 
+@pytest.mark.parametrize(("dtype", "channels", "order", "mode"), [
+    (np.uint8, 3, 1, "constant"),  # one 32-bit load per tap
+    (np.uint16, 2, 0, "wrap"),  # 16-bit channels of one 32-bit load
+    (np.uint16, 3, 1, "edge"),  # a load per channel
+    (np.float32, 1, 3, "reflect"),
+])
+def test_warp_one_lane_and_copies(backend, rng, sample_fpi, monkeypatch, dtype, channels, order, mode):
+    """The data paths CPUs do not take by default: sampling one pixel per
+    work-item (as on GPUs) and the output copied back rather than written
+    in place."""
+    monkeypatch.setattr(backend, "lanes", 1)
+    monkeypatch.setattr(backend, "zero_copy", False)
+    image = test_image(rng, dtype, channels)
+    f = sample_fpi @ RLinear(0.7 + 0.1j, 0.05, 10 + 8j)
+    assert_close_to_numpy(image, f, order=order, mode=mode, cval=list(range(3, 3 + channels)))
+
+
+@pytest.mark.parametrize(("dtype", "channels"), [(np.uint8, 3), (np.uint16, 2)])
+def test_warp_identity_is_exact(backend, rng, dtype, channels):
+    """At pixel centers bilinear sampling returns the pixels exactly: every
+    channel comes out of its 32-bit word in place, the last pixel too
+    (whose word runs past the end of the image)."""
+    image = test_image(rng, dtype, channels, shape=(5, 7))
+    got = fpiwarp.warp_image(image, RLinear(1, 0, 0), order=1, mode="constant", backend="opencl")
+    np.testing.assert_array_equal(got, image)
+
+
 def test_warp_output_shape_and_pole(opencl_backend, rng):
     """An output crossing the pole: non-finite positions give cval, and an
     output shape that is not a multiple of the work-group width."""

@@ -9,8 +9,10 @@ the kind of map (each stage's header row: core, number of TPS centers,
 regions, Newton steps, see :func:`kind_options`) and, for images, the kind
 of sampling (dtype, channels, order, border mode). Knowing the kind at
 build time unrolls the stage loop, which lets PoCL vectorize the map
-across work-items. Kernel objects are fetched once per program; device
-buffers are reused across calls of the same shape.
+across work-items; on CPUs the sampling is written in 8-lane vector types
+(:data:`VECTOR_LANES_CPU`), as PoCL does not vectorize it by itself.
+Kernel objects are fetched once per program; device buffers are reused
+across calls of the same shape.
 
 Choosing a device
 -----------------
@@ -39,6 +41,12 @@ _CTYPES = {np.dtype(np.uint8): "uchar", np.dtype(np.uint16): "ushort", np.dtype(
 #: devices, capped by the device's limit. On PoCL every work-group costs a
 #: fixed overhead, so CPUs get large groups; GPUs prefer small ones.
 LOCAL_X_CPU, LOCAL_X_OTHER = 1024, 128
+#: On CPUs warp_image samples 8 pixels per work-item in 8-lane vector types
+#: (AVX registers): PoCL does not vectorize the sampling across work-items.
+VECTOR_LANES_CPU = 8
+#: Bytes allocated past the source image: sampling reads a pixel of up to
+#: 4 bytes as one 32-bit word, which may run past the last pixel.
+IMAGE_SLACK = 4
 
 
 def _import_cl():
@@ -161,9 +169,12 @@ class Backend:
         self._point_options = ("-DFW_POINT=double", "-DFW_POINT_DOUBLE=1") if self.has_fp64 else ()
         is_cpu = bool(self.device.type & cl.device_type.CPU)
         #: on a CPU device, map_points runs on the caller's arrays in place
-        #: (USE_HOST_PTR) instead of copying 32 bytes per point in and out
+        #: (USE_HOST_PTR) instead of copying 32 bytes per point in and out,
+        #: and warp_image writes its output array in place
         self.zero_copy = is_cpu and bool(self.device.host_unified_memory)
         self.local_x = min(LOCAL_X_CPU if is_cpu else LOCAL_X_OTHER, self.device.max_work_group_size)
+        #: pixels one work-item samples at once, in vector types (see fpiwarp_map.h)
+        self.lanes = VECTOR_LANES_CPU if is_cpu and self.local_x % VECTOR_LANES_CPU == 0 else 1
         self._kernels = {}  # build options -> {kernel name: Kernel}
         self._buffers = {}  # (role, nbytes) -> Buffer
         self._lock = threading.Lock()
@@ -247,14 +258,26 @@ class Backend:
         cval4 = self._cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         with self._lock:
             block, kind = self._upload_block(transform.inverse)
-            options = kind + sampling_options(image.dtype, c, order, mode) + (f"-DFW_LOCAL_X={self.local_x}",)
+            options = kind + sampling_options(image.dtype, c, order, mode)
+            options += (f"-DFW_LOCAL_X={self.local_x}", f"-DFW_VN={self.lanes}")
             kern = self.kernel("warp_image", options)
-            src = self._buffer("image_in", image.nbytes)
-            dst = self._buffer("image_out", out.nbytes)
+            src = self._buffer("image_in", image.nbytes + IMAGE_SLACK)
             self._cl.enqueue_copy(self.queue, src, image)
+            if self.zero_copy:  # the kernel writes `out` itself
+                mf = self._cl.mem_flags
+                dst = self._cl.Buffer(self.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
+            else:
+                dst = self._buffer("image_out", out.nbytes)
             kern.set_args(block, src, np.int32(w), np.int32(h), dst, np.int32(ow), np.int32(oh), cval4)
             cols = -(-ow // self.local_x) * self.local_x
             self._cl.enqueue_nd_range_kernel(self.queue, kern, (cols, oh), (self.local_x, 1))
-            self._cl.enqueue_copy(self.queue, out, dst)
+            if self.zero_copy:  # mapping makes the results visible in `out`
+                mapped, event = self._cl.enqueue_map_buffer(
+                    self.queue, dst, self._cl.map_flags.READ, 0, out.shape, out.dtype
+                )
+                event.wait()
+                del mapped
+            else:
+                self._cl.enqueue_copy(self.queue, out, dst)
             self.queue.finish()
         return out
