@@ -70,3 +70,29 @@ def test_loader_reads_sources_from_an_installed_wheel(wheel, tmp_path):
     assert result.returncode == 0, result.stderr
     expected = sum(1 for f in ("kernels", "glsl") for p in (ROOT / f).iterdir() if p.suffix in {".cl", ".h", ".glsl", ".vert", ".frag"})
     assert int(result.stdout) == expected
+
+
+def readme_command(marker):
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = text.split(f"<!-- {marker} -->")[1].split(f"<!-- /{marker} -->")[0]
+    (line,) = [ln for ln in block.splitlines() if ln.strip() and not ln.startswith("```")]
+    return line
+
+
+def test_readme_main_command_runs_the_demo(tmp_path):
+    """The main command installs, then runs the demo: run its second half."""
+    install, run = readme_command("main-command").split(" && ")
+    assert install.startswith("python3 -m pip install")
+    args = run.split()
+    assert args[:4] == ["python3", "-m", "fpiwarp", "demo"]
+    result = subprocess.run([sys.executable, *args[1:]], cwd=tmp_path, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "K = " in result.stdout
+    assert (tmp_path / args[4]).stat().st_size > 10_000
+
+
+def test_ci_runs_the_readme_test_command():
+    command = readme_command("test-command")
+    assert "pytest" in command
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    assert "test-command" in ci  # .ci/run extracts and runs exactly that line
