@@ -11,9 +11,14 @@ import numpy as np
 
 from ._errors import DegenerateQuadError
 from ._linear import RLinear
+from ._points import as_xy
 from ._quad import check_quad, parallelogram_mobius, signed_area
 from ._transform import Transform, chain
 from .params import Stage
+
+#: Poles farther than size / POLE_RTOL from the quad are rounding of a pole
+#: at infinity (the map is affine to working precision).
+POLE_RTOL = 1e-13
 
 
 def _parallelogram_frame(p):
@@ -89,11 +94,11 @@ class FPI(Transform):
 
     @property
     def src(self):
-        return np.stack([self._z.real, self._z.imag], axis=-1)
+        return as_xy(self._z)
 
     @property
     def dst(self):
-        return np.stack([self._w.real, self._w.imag], axis=-1)
+        return as_xy(self._w)
 
     @property
     def K(self):
@@ -112,20 +117,28 @@ class FPI(Transform):
 
     @property
     def pole_image(self):
-        """w∞ = m_W⁻¹ ∘ A ∘ m_Z(∞) as (x, y), or None where f is affine."""
-        if self.m_src.s == 0:
-            inf_image = None  # m_Z(∞) = ∞, A(∞) = ∞
+        """w∞ = m_W⁻¹ ∘ A ∘ m_Z(∞) as (x, y), or None where f is affine.
+
+        A point more than ``1 / POLE_RTOL`` quad sizes away is rounding of a
+        pole at infinity (an affine map, e.g. the FPI between similar quads,
+        whose two Möbius poles cancel): None.
+        """
+        m = self.m_src
+        if m.s == 0:  # m_Z(∞) = ∞ and A(∞) = ∞: w∞ is the pole image of m_W⁻¹
+            w = self._m_dst_inv.pole_image
+            w = None if w is None else complex(w[0], w[1])
         else:
-            inf_image = self.linear._map(self.m_src.beta - self.m_src.alpha / self.m_src.s)
-        if inf_image is None:
-            p = self._m_dst_inv.pole_image
-            return None if p is None else p
-        w = self._m_dst_inv._map(np.complex128(inf_image))
+            with np.errstate(all="ignore"):
+                w = complex(self._m_dst_inv._map(self.linear._map(m.beta - m.alpha / m.s)))
+        size = float(np.max(np.abs(self._w - self._w.mean())))
+        if w is None or not np.isfinite(w) or abs(w - self._w.mean()) > size / POLE_RTOL:
+            return None
         return np.array([w.real, w.imag])
 
     @property
     def is_affine(self):
-        return self.m_src.s == 0 and self.m_dst.s == 0
+        """True where f has no pole (an affine map of the whole plane)."""
+        return self.pole_image is None
 
     def _map(self, z):
         return self._m_dst_inv._map(self.linear._map(self.m_src._map(z)))

@@ -42,7 +42,9 @@ class Mobius(Transform):
             raise ValueError("Möbius coefficients need ad - bc != 0")
         q = 0j if center is None else _complex(center, "center")
         if abs(c * q + d) <= 1e-12 * (abs(c * q) + abs(d)):
-            q = q + (1.0 if c == 0 else -d / c + 1.0)  # move off the pole
+            # the center sits on the pole -d/c (c != 0 here, as ad - bc != 0):
+            # center the form one pole-distance-from-origin (at least 1) away
+            q = -d / c + max(1.0, abs(d / c))
         den = c * q + d
         self._set(q, -c / den, det / den**2, (a * q + b) / den)
 
@@ -65,6 +67,9 @@ class Mobius(Transform):
         w = as_complex(dst, "dst")
         if z.shape != (3,) or w.shape != (3,):
             raise ValueError("from_points needs three source and three target points")
+        for name, pts in (("src", z), ("dst", w)):
+            if len({complex(v) for v in pts}) < 3 or not np.all(np.isfinite(pts)):
+                raise ValueError(f"from_points needs three distinct finite {name} points, got {pts}")
         # cross-ratio maps of each triple to (0, 1, inf), then compose
         mz = _to_standard(z)
         mw = _to_standard(w)

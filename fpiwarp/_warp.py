@@ -42,12 +42,12 @@ def check_image(image):
             f"image dtype must be uint8, uint16 or float32, got {image.dtype} "
             "(convert with image.astype(np.float32))"
         )
-    if image.ndim == 2:
-        return image[:, :, None], True
-    if image.ndim != 3 or not 1 <= image.shape[2] <= 4:
+    if image.ndim not in (2, 3) or (image.ndim == 3 and not 1 <= image.shape[2] <= 4):
         raise ValueError(f"image must be (H, W) or (H, W, C) with C in 1..4, got shape {image.shape}")
     if image.shape[0] == 0 or image.shape[1] == 0:
         raise ValueError(f"image is empty: shape {image.shape}")
+    if image.ndim == 2:
+        return image[:, :, None], True
     return image, False
 
 
@@ -55,9 +55,12 @@ def check_output_shape(output_shape, image):
     if output_shape is None:
         return image.shape[:2]
     try:
-        oh, ow = (int(v) for v in output_shape[:2])
+        oh, ow = output_shape
+        if int(oh) != oh or int(ow) != ow:
+            raise ValueError
+        oh, ow = int(oh), int(ow)
     except (TypeError, ValueError):
-        raise ValueError(f"output_shape must be (rows, cols), got {output_shape!r}") from None
+        raise ValueError(f"output_shape must be (rows, cols) integers, got {output_shape!r}") from None
     if oh <= 0 or ow <= 0:
         raise ValueError(f"output_shape must be positive, got {output_shape!r}")
     return oh, ow

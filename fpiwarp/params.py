@@ -52,6 +52,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._linear import RLinear
+
 LAYOUT_VERSION = 1
 STAGE_ROWS = 12 + 64
 MAX_CENTERS = 64
@@ -125,10 +127,9 @@ def pack(stages):
         _put(rows[ROW_L12], l1, l2)
         _put(rows[ROW_L3], l3)
         rows[ROW_L3, 2] = st.newton_tol
-        det = abs(l1) ** 2 - abs(l2) ** 2
-        mu1, mu2 = np.conj(l1) / det, -l2 / det
-        _put(rows[ROW_MU12], mu1, mu2)
-        _put(rows[ROW_MU3], -(mu1 * l3 + mu2 * np.conj(l3)))
+        mu = RLinear(l1, l2, l3).inverse  # the Newton seed
+        _put(rows[ROW_MU12], mu.l1, mu.l2)
+        _put(rows[ROW_MU3], mu.l3)
         for r, reg in enumerate(st.regions):
             _put(rows[ROW_REGIONS + 2 * r], reg.origin, reg.normal)
             _put(rows[ROW_REGIONS + 2 * r + 1], reg.a, reg.b)

@@ -133,7 +133,6 @@ def test_parallelograms_give_the_affine_map(a, b):
     except DegenerateQuadError:
         return  # near-collinear corners
     assert f.is_affine and f.pole is None and f.pole_image is None
-    matrix, offset = np.linalg.lstsq(np.c_[z, np.ones(4)], w, rcond=None)[0][:2].T, None
     full = np.linalg.lstsq(np.c_[z, np.ones(4)], w, rcond=None)[0]
     affine = RLinear.from_matrix(full[:2].T, full[2])
     p = np.random.default_rng(3).normal(size=(20, 2)) * 10
@@ -262,3 +261,13 @@ def test_map_points_numpy_backend_and_shapes(sample_fpi):
     assert np.allclose(out, sample_fpi(p))
     with pytest.raises(ValueError, match="shape"):
         fpiwarp.map_points(sample_fpi, np.zeros((4, 3)))
+
+
+def test_similar_quads_give_an_affine_map_with_no_pole():
+    """Both Möbius maps have poles, but they cancel: f is a similarity."""
+    z = np.array([[0, 0], [2, 0], [2.5, 1.5], [0, 1]], float)
+    f = FPI(z, 2 * z + [3, 1])
+    assert f.K == pytest.approx(1.0)
+    assert f.pole is None and f.pole_image is None and f.is_affine
+    g = FPI(z, [[0, 0], [2, 0], [2.6, 1.5], [0, 1]])
+    assert g.pole is not None and not g.is_affine

@@ -111,3 +111,17 @@ def test_params_block_evaluates_like_the_map(sample_fpi, dtype, rtol):
         got = evaluate(f.params(), p, dtype)
         scale = np.abs(ref).max()
         assert np.allclose(got, ref, rtol=rtol, atol=rtol * scale), f
+
+
+@pytest.mark.parametrize("center", [-1.0, -1.0 + 1e-13, 0.0])
+def test_mobius_centered_on_its_pole_recenters(center):
+    m = Mobius(1, 0, 1, 1, center=center)  # z / (z + 1), pole at -1
+    z = np.array([0.5, 2.0, -3.0, 1j])
+    got = m(np.stack([z.real, z.imag], axis=-1))
+    assert np.allclose(got[:, 0] + 1j * got[:, 1], z / (z + 1), rtol=1e-12)
+    assert np.allclose(m.pole, [-1, 0])
+
+
+def test_mobius_from_points_names_coincident_points():
+    with pytest.raises(ValueError, match="distinct"):
+        Mobius.from_points([[0, 0], [0, 0], [1, 1]], [[0, 0], [1, 0], [0, 1]])

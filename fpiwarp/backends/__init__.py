@@ -75,8 +75,10 @@ def get_backend(name):
     the reason and the extra to install when it cannot run here."""
     if name not in REGISTRY:
         raise ValueError(f"unknown backend {name!r}; choose from {sorted(REGISTRY)}")
-    status = backend_status()
-    reason = status[name]
+    with _lock:
+        if name not in _status:
+            _status[name] = _probe(name)
+        reason = _status[name][1]
     if reason is not None:
         entry = REGISTRY[name]
         hint = f"install it with: pip install 'fpiwarp[{entry.extra}]'" if entry.extra else ""
