@@ -132,6 +132,7 @@ class Renderer:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         self.ctx = ctx
+        self._owns_warper = warper is None
         self.warper = warper if warper is not None else glb.GLWarper(ctx)
         self.order, self.mode = order, mode
         self.method = method
@@ -405,12 +406,15 @@ class Renderer:
         return out
 
     def release(self):
-        """Free the GL objects of the renderer (and of its warper)."""
+        """Free the GL objects of the renderer, and of its warper when the
+        renderer made it (a warper passed in stays usable)."""
         for obj in (self._vao, self._vbo, self._texture):
             if obj is not None:
                 obj.release()
         self._vao = self._vbo = self._texture = None
         self._release_mesh()
+        if not self._owns_warper:
+            return
         previous = _bound(self.ctx)
         if previous is self.warper._dummy:
             previous = self.ctx.detect_framebuffer(0)
@@ -485,9 +489,14 @@ def render_image(image, transform, *, overlays=(), ctx=None, order=1, mode="cons
     otherwise take "current" from each other.
     """
     img, squeeze = check_image(image)
-    if ctx is None:
-        ctx = glb.shared_context()
-    renderer = Renderer(ctx, order=order, mode=mode, cval=cval)
+    warper = None
+    if ctx is None:  # the backend's context and warper: its programs are compiled once
+        from .backends import get_backend
+
+        warper = get_backend("gl").warper
+        glb.check_thread()
+        ctx = warper.ctx
+    renderer = Renderer(ctx, order=order, mode=mode, cval=cval, warper=warper)
     try:
         renderer.set_image(img)
         renderer.set_transform(transform)

@@ -376,3 +376,22 @@ def test_bad_arguments_are_clear_errors(gl):
         gl.warp_image(img, sample_fpi(), (8, 8), order=1, mode="mirror", cval=np.zeros(1))
     with pytest.raises(ValueError, match="block"):
         gl.warper.set_map(np.zeros((3, 3), np.float32))
+
+
+def test_calls_from_another_thread_are_refused(gl):
+    """A GL context is current in one thread: another thread gets a clear
+    error, never a silently wrong picture."""
+    import threading
+
+    errors = []
+
+    def worker():
+        try:
+            fpiwarp.warp_image(np.zeros((4, 4), np.uint8), RLinear(1), backend="gl")
+        except RuntimeError as exc:
+            errors.append(str(exc))
+
+    t = threading.Thread(target=worker)
+    t.start()
+    t.join()
+    assert errors and "thread" in errors[0]

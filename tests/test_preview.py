@@ -142,15 +142,11 @@ def test_missing_display_is_one_clear_line(tmp_path, capsys, picture, monkeypatc
 
 
 def test_missing_gl_driver_is_one_clear_line(tmp_path, capsys, picture, monkeypatch):
-    from fpiwarp.backends import gl_backend
+    from fpiwarp import backends
 
     path = tmp_path / "in.png"
     io.write_image(path, picture)
-
-    def no_gl():
-        raise RuntimeError("no OpenGL 3.3 context: egl: eglInitialize failed")
-
-    monkeypatch.setattr(gl_backend, "shared_context", no_gl)
+    monkeypatch.setitem(backends._status, "gl", (None, "no OpenGL 3.3 context: egl: eglInitialize failed"))
     code = main(["preview", str(path), "--screenshot", str(tmp_path / "s.png")])
     _, err = capsys.readouterr()
     assert code == 1
@@ -427,3 +423,16 @@ def test_qt_example_renders_a_frame(gl_backend, tmp_path, xvfb):
     if importlib.util.find_spec("PySide6") is None:
         pytest.skip("PySide6 not installed (pip install PySide6-Essentials)")
     _run_example("qt_embed", tmp_path, env={"DISPLAY": xvfb, "QT_QPA_PLATFORM": "offscreen"})
+
+
+def test_renderer_release_keeps_a_shared_warper(gl_backend):
+    from fpiwarp import gl as fgl
+    from fpiwarp.backends import get_backend
+
+    backend = get_backend(gl_backend)
+    renderer = fgl.Renderer(backend.ctx, warper=backend.warper)
+    renderer.set_image(np.zeros((8, 8, 3), np.uint8))
+    renderer.release()
+    img = np.arange(64 * 3, dtype=np.uint8).reshape(8, 8, 3)
+    out = fpiwarp.warp_image(img, fpiwarp.RLinear(1), backend=gl_backend)
+    assert np.array_equal(out, img)  # the backend still works

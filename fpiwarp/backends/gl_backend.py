@@ -35,6 +35,7 @@ thread.
 """
 
 import re
+import threading
 
 import moderngl  # missing: the registry reports "cannot import moderngl"
 import numpy as np
@@ -85,6 +86,7 @@ def create_context():
 def shared_context():
     """The process-wide context of the backend, created once (an error too)."""
     if "ctx" not in _shared:
+        _shared["thread"] = threading.get_ident()
         try:
             _shared["ctx"] = create_context()
         except RuntimeError as exc:
@@ -93,6 +95,18 @@ def shared_context():
     if _shared["ctx"] is None:
         raise RuntimeError(_shared["error"])
     return _shared["ctx"]
+
+
+def check_thread():
+    """Raise unless called from the thread that created the shared context:
+    a GL context is current in one thread only, and drawing from another
+    would silently give wrong pictures."""
+    owner = _shared.get("thread")
+    if owner is not None and owner != threading.get_ident():
+        raise RuntimeError(
+            "the gl backend's OpenGL context belongs to the thread that created it; "
+            "call the gl backend from that thread (e.g. the main thread)"
+        )
 
 
 def probe():
@@ -583,9 +597,11 @@ class Backend:
         return self.warper.ctx
 
     def map_points(self, transform, points):
+        check_thread()
         return self.warper.map_points(transform, points)
 
     def warp_image(self, image, transform, output_shape, *, order, mode, cval, hardware_filter=False):
+        check_thread()
         return self.warper.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
                                       hardware_filter=hardware_filter)
 
@@ -605,7 +621,9 @@ def warp_image_mesh(image, transform, output_shape=None, *, order=1, mode="const
     img, squeeze = check_image(image)
     cval = check_cval(cval, img.shape[2])
     shape = check_output_shape(output_shape, img)
-    out = get_backend("gl").warper.warp_image_mesh(
+    backend = get_backend("gl")
+    check_thread()
+    out = backend.warper.warp_image_mesh(
         img, transform, shape, order=order, mode=mode, cval=cval, grid_step=grid_step,
         vertices=vertices, triangles=triangles)
     return out[:, :, 0] if squeeze else out

@@ -26,6 +26,7 @@ import itertools
 import operator
 import os
 import threading
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -164,6 +165,8 @@ class Backend:
         wp.load_module(warp_map, device=self.device)
         self._lock = threading.Lock()
         self._pool = ThreadPoolExecutor(self.threads, "fpiwarp-warp") if self.threads > 1 else None
+        if self._pool is not None:  # its idle threads end with the backend object
+            weakref.finalize(self, self._pool.shutdown, wait=False)
         self._block = wp.zeros(_MAX_ROWS, dtype=wp.vec4, device=self.device)
         self._block_staging = self._block if self._on_cpu else wp.zeros_like(self._block, device="cpu", pinned=True)
         self._block_host = self._block_staging.numpy()  # a (rows, 4) float32 view of host memory
