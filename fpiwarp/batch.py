@@ -232,7 +232,9 @@ class BatchSummary:
             lines.append("skipped files already have an output; pass --overwrite to redo them")
         if self.interrupted:
             lines.append(f"interrupted: {self.total - self.processed} files not done; run again to resume")
-        lines.extend(f"failed: {path}: {reason}" for path, reason in self.failed)
+        for path, reason in sorted(self.failed, key=lambda item: str(item[0])):
+            prefix = f"{path}: "
+            lines.append(f"failed: {path}: {reason[len(prefix):] if reason.startswith(prefix) else reason}")
         return lines
 
 
@@ -248,12 +250,16 @@ def list_inputs(input_dir, pattern=None, exclude=None):
     if pattern is not None and (not pattern or Path(pattern).is_absolute()):
         raise ValueError(f"the pattern must be a glob relative to the input folder, like '*.jpg', got {pattern!r}")
     excluded = Path(exclude).resolve() if exclude is not None else None
+    if excluded is not None and excluded not in root.resolve().parents and excluded != root.resolve():
+        excluded_inside = excluded  # an output folder inside the input tree: skip what is in it
+    else:
+        excluded_inside = None  # the output folder holds the inputs (or is elsewhere): skip nothing
     found = []
     for path in root.glob(pattern or "*"):
         rel = path.relative_to(root)
         if any(part.startswith(".") for part in rel.parts) or is_temp_file(path) or not path.is_file():
             continue
-        if excluded is not None and (path.resolve() == excluded or excluded in path.resolve().parents):
+        if excluded_inside is not None and excluded_inside in path.resolve().parents:
             continue
         found.append(path)
     return sorted(found)

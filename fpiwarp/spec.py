@@ -82,7 +82,7 @@ def _is_number(value):
 
 
 def _is_integer(value):
-    return _is_number(value) and float(value).is_integer()
+    return _is_number(value) and (isinstance(value, int) or float(value).is_integer())
 
 
 def spec_kind(spec, path=""):

@@ -277,3 +277,19 @@ def test_stacks_match_warp_image_with_the_pole_inside_the_output(rng):
     for order in (0, 1, 3):
         expected = np.stack([fpiwarp.warp_image(im, fpi, order=order, cval=5) for im in stack])
         np.testing.assert_array_equal(warp_batch(stack, fpi, order=order, cval=5), expected)
+
+
+def test_output_folder_containing_the_input_folder(tmp_path):
+    """`batch spec photos .`: the output folder holds the input folder; the
+    inputs are still found (only an output folder *inside* the inputs is
+    skipped)."""
+    from fpiwarp.batch import list_inputs
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    (photos / "a.png").write_bytes(b"")
+    (photos / "out").mkdir()
+    (photos / "out" / "b.png").write_bytes(b"")
+    assert list_inputs(photos, exclude=tmp_path) == [photos / "a.png"]
+    assert list_inputs(photos, "**/*", exclude=photos / "out") == [photos / "a.png"]
+    assert list_inputs(photos, "**/*", exclude=tmp_path) == [photos / "a.png", photos / "out" / "b.png"]

@@ -92,7 +92,14 @@ def test_readme_main_command_runs_the_demo(tmp_path):
 
 
 def test_ci_runs_the_readme_test_command():
+    """.ci/run extracts its test command from the README with sed: run that
+    extraction and compare."""
+    import re
+
     command = readme_command("test-command")
     assert "pytest" in command
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
-    assert "test-command" in ci  # .ci/run extracts and runs exactly that line
+    (extraction,) = re.findall(r"test_command=\$\((sed .*README\.md)\)", ci)
+    result = subprocess.run(["bash", "-c", extraction], cwd=ROOT, capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == command
+    assert 'bash -euo pipefail -c "$test_command"' in ci
