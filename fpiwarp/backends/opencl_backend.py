@@ -238,16 +238,22 @@ class Backend:
             kern.set_args(block, src, dst, np.int32(n))
             total = -(-n // self.local_x) * self.local_x
             self._cl.enqueue_nd_range_kernel(self.queue, kern, (total,), (self.local_x,))
-            if self.zero_copy:  # mapping makes the results visible in `out`
-                mapped, event = self._cl.enqueue_map_buffer(
-                    self.queue, dst, self._cl.map_flags.READ, 0, out.shape, out.dtype
-                )
-                event.wait()
-                del mapped
-            else:
-                self._cl.enqueue_copy(self.queue, out, dst)
-            self.queue.finish()
+            self._read_back(dst, out)
         return out.astype(np.float64, copy=False).reshape(shape)
+
+    def _read_back(self, dst, out):
+        """Make the kernel's results visible in ``out`` and wait for them:
+        on a zero-copy buffer (``out`` is its host memory) mapping does it,
+        otherwise a copy."""
+        if self.zero_copy:
+            mapped, event = self._cl.enqueue_map_buffer(
+                self.queue, dst, self._cl.map_flags.READ, 0, out.shape, out.dtype
+            )
+            event.wait()
+            del mapped
+        else:
+            self._cl.enqueue_copy(self.queue, out, dst)
+        self.queue.finish()
 
     def warp_image(self, image, transform, output_shape, *, order, mode, cval):
         h, w, c = image.shape
@@ -271,13 +277,5 @@ class Backend:
             kern.set_args(block, src, np.int32(w), np.int32(h), dst, np.int32(ow), np.int32(oh), cval4)
             cols = -(-ow // self.local_x) * self.local_x
             self._cl.enqueue_nd_range_kernel(self.queue, kern, (cols, oh), (self.local_x, 1))
-            if self.zero_copy:  # mapping makes the results visible in `out`
-                mapped, event = self._cl.enqueue_map_buffer(
-                    self.queue, dst, self._cl.map_flags.READ, 0, out.shape, out.dtype
-                )
-                event.wait()
-                del mapped
-            else:
-                self._cl.enqueue_copy(self.queue, out, dst)
-            self.queue.finish()
+            self._read_back(dst, out)
         return out
