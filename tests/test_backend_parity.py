@@ -5,6 +5,9 @@ import pytest
 
 import fpiwarp
 from fpiwarp import FPI, RLinear
+from fpiwarp.params import evaluate
+
+import kernel_cases
 
 
 @pytest.mark.parametrize("mode", ["constant", "edge", "reflect", "wrap"])
@@ -30,3 +33,22 @@ def test_backends_agree_with_the_reference_on_an_fpi(any_backend):
     assert np.mean(diff <= 1) >= 0.998
     pts = np.random.default_rng(0).uniform(0, 64, size=(100, 2))
     assert np.allclose(fpiwarp.map_points(f, pts, backend=any_backend), f(pts), rtol=1e-5, atol=1e-4)
+
+
+@pytest.mark.parametrize("name", sorted(kernel_cases.MAPS))
+def test_map_points_of_every_kind_of_stage(any_backend, name):
+    """The shared cases (FPI family, TPS, Newton inverse, stage compounds)
+    on every backend, against the block's float64 reference."""
+    transform = kernel_cases.MAPS[name]()
+    pts = kernel_cases.frame_points(np.random.default_rng(7), n=500)
+    want = evaluate(transform.params(), pts, np.float64)
+    got = fpiwarp.map_points(transform, pts, backend=any_backend)
+    kernel_cases.assert_close_relative(got, want, atol=kernel_cases.newton_atol(transform))
+
+
+def test_map_points_with_regions(any_backend):
+    transform = kernel_cases.region_map()
+    pts = kernel_cases.frame_points(np.random.default_rng(8), n=500)
+    far = (np.abs(pts[:, 0] - 52) > 1e-3) & (np.abs(pts[:, 1] - 6) > 1e-3)  # off the region lines
+    want = evaluate(transform.params(), pts[far], np.float64)
+    kernel_cases.assert_close_relative(fpiwarp.map_points(transform, pts[far], backend=any_backend), want)
