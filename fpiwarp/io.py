@@ -217,6 +217,11 @@ def _png_chunks(data, name):
     return chunks
 
 
+#: Largest image the built-in PNG reader inflates (2**28 px, 1.5 GiB as
+#: 16-bit RGB): beyond it a file is refused rather than exhausting memory.
+MAX_PNG_PIXELS = 2**28
+
+
 def _ihdr(chunks):
     w, h, depth, color, comp, filt, interlace = struct.unpack(">IIBBBBB", chunks[0][1])
     return w, h, depth, color, comp, filt, interlace
@@ -273,15 +278,23 @@ def _png_decode(chunks, name):
             f"{name}: this PNG (bit depth {depth}, color type {color}, interlace {ihdr[6]}) "
             "needs Pillow: pip install 'fpiwarp[io]'"
         )
+    if w == 0 or h == 0:
+        raise ImageError(f"{name}: PNG has no pixels ({w}×{h})")
+    if w * h > MAX_PNG_PIXELS:
+        raise ImageError(
+            f"{name}: PNG of {w}×{h} pixels exceeds the built-in reader's limit of {MAX_PNG_PIXELS} "
+            "(a decompression bomb, or an image too large to warp in memory)"
+        )
     channels = _COLOR_CHANNELS[color]
     nbytes = depth // 8
     bpp = channels * nbytes
-    try:
-        raw = zlib.decompress(b"".join(p for t, p in chunks if t == b"IDAT"))
+    expected = h * (w * bpp + 1)
+    try:  # never inflate more than the header promises
+        raw = zlib.decompressobj().decompress(b"".join(p for t, p in chunks if t == b"IDAT"), expected + 1)
     except zlib.error as exc:
         raise ImageError(f"{name}: corrupt PNG image data ({exc})") from None
-    if len(raw) != h * (w * bpp + 1):
-        raise ImageError(f"{name}: corrupt PNG (image data has {len(raw)} bytes, expected {h * (w * bpp + 1)})")
+    if len(raw) != expected:
+        raise ImageError(f"{name}: corrupt PNG (image data has {len(raw)} bytes, expected {expected})")
     pixels = _unfilter(raw, h, w * bpp, bpp, name)
     if depth == 16:
         arr = pixels.view(">u2").astype(np.uint16)

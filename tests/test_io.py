@@ -286,3 +286,15 @@ def test_an_output_appearing_while_writing_is_not_clobbered(tmp_path):
 def test_missing_output_folder_is_an_error(tmp_path, rng):
     with pytest.raises(FileNotFoundError, match="output folder does not exist"):
         write_image(tmp_path / "nope" / "out.png", _random((4, 4), np.uint8, rng))
+
+
+def test_builtin_png_reader_refuses_decompression_bombs(tmp_path, monkeypatch):
+    """A header promising more pixels than the limit is refused before any
+    inflation; data inflating past the header's size is corrupt."""
+    from fpiwarp import io as fio
+
+    path = tmp_path / "big.png"
+    fio.write_image(path, np.zeros((64, 64, 3), np.uint16))  # 16-bit: the built-in reader
+    monkeypatch.setattr(fio, "MAX_PNG_PIXELS", 64 * 64 - 1)
+    with pytest.raises(fio.ImageError, match="limit"):
+        fio.read_image(path)
