@@ -30,11 +30,10 @@ each offset point.
 
 import numpy as np
 
-from ._errors import DegenerateQuadError
 from ._fpi import _centered_at_zero
 from ._linear import RLinear
 from ._mobius import Mobius, _matmul
-from ._quad import check_quad, parallelogram_mobius, signed_area
+from ._quad import check_quad_pair, parallelogram_mobius, signed_area
 from ._tps import ThinPlateSpline
 from ._transform import Transform, chain
 from .params import MAX_CENTERS
@@ -165,13 +164,7 @@ class ConstrainedFPI(Transform):
     """
 
     def __init__(self, src, dst, edges, points_per_edge=10, delta=0.01):
-        z = check_quad(src, "src")
-        w = check_quad(dst, "dst")
-        if np.sign(signed_area(z)) != np.sign(signed_area(w)):
-            raise DegenerateQuadError(
-                "src and dst have opposite orientations (one is clockwise, the other "
-                "counter-clockwise): no orientation-preserving map joins them"
-            )
+        z, w, flip = check_quad_pair(src, dst)
         edges, kind = normalize_edges(edges)
         k = _check_points_per_edge(points_per_edge)
         delta = float(delta)
@@ -180,7 +173,6 @@ class ConstrainedFPI(Transform):
         if kind == "adjacent":
             shared_similarity(z, w, edges[0])  # refuse inconsistent points early
         # As for the FPI: solve counter-clockwise, mirror the parts back.
-        flip = signed_area(z) < 0
         zs, ws = (np.conj(z), np.conj(w)) if flip else (z, w)
         m_src = parallelogram_mobius(zs)
         m_dst = parallelogram_mobius(ws)

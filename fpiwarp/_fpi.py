@@ -9,10 +9,9 @@ the FPI of the swapped quads, exact and with the same K.
 
 import numpy as np
 
-from ._errors import DegenerateQuadError
 from ._linear import RLinear
 from ._points import as_xy
-from ._quad import check_quad, parallelogram_mobius, signed_area
+from ._quad import check_quad_pair, parallelogram_mobius
 from ._transform import Transform, chain
 from .params import Stage
 
@@ -60,17 +59,9 @@ class FPI(Transform):
     """
 
     def __init__(self, src, dst):
-        z = check_quad(src, "src")
-        w = check_quad(dst, "dst")
-        oz, ow = np.sign(signed_area(z)), np.sign(signed_area(w))
-        if oz != ow:
-            raise DegenerateQuadError(
-                "src and dst have opposite orientations (one is clockwise, the other "
-                "counter-clockwise): no orientation-preserving map joins them"
-            )
+        z, w, flip = check_quad_pair(src, dst)
         # The closed form wants counter-clockwise quads in (x, y); solve for
         # mirrored quads otherwise and mirror the parts back.
-        flip = oz < 0
         if flip:
             z, w = np.conj(z), np.conj(w)
         m_src = parallelogram_mobius(z)

@@ -74,6 +74,24 @@ def check_quad(points, name="quad"):
     return z
 
 
+def check_quad_pair(src, dst):
+    """Validate a source and a target quad of the same orientation.
+
+    Returns (z, w, clockwise): the quads as complex128 (4,) and whether
+    they run clockwise in (x, y), where the closed forms (written for
+    counter-clockwise quads) solve the mirrored problem.
+    """
+    z = check_quad(src, "src")
+    w = check_quad(dst, "dst")
+    clockwise = signed_area(z) < 0
+    if clockwise != (signed_area(w) < 0):
+        raise DegenerateQuadError(
+            "src and dst have opposite orientations (one is clockwise, the other "
+            "counter-clockwise): no orientation-preserving map joins them"
+        )
+    return z, w, clockwise
+
+
 def _cross(a, b):
     return (a.conjugate() * b).imag
 

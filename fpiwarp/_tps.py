@@ -17,6 +17,7 @@ exactly what :func:`fpiwarp.params._tps` evaluates on the device.
 import numpy as np
 
 from ._errors import InverseNotConvergedError
+from ._linear import RLinear
 from ._transform import Transform, unsolved_are_nan
 from .params import CORE_TPS, CORE_TPS_INVERSE, MAX_CENTERS, Stage
 
@@ -160,16 +161,18 @@ class ThinPlateSpline(Transform):
         lg = np.log(r2)
         return r2, lg
 
+    def _value(self, p, r2, lg):
+        """phi(p) from the pair terms of _terms (r2 is not modified)."""
+        u = [(r2 * lg) @ v for v in self._wval]
+        return self.l1 * p + self.l2 * np.conj(p) + self.l3 + 0.5 * (u[0] + 1j * u[1])
+
     def _map(self, z):
         z = np.asarray(z, dtype=np.complex128)
         flat = z.reshape(-1)
         out = np.empty_like(flat)
         for s in range(0, flat.size, CHUNK):
             p = flat[s : s + CHUNK]
-            r2, lg = self._terms(p)
-            r2 *= lg
-            u = [r2 @ v for v in self._wval]
-            out[s : s + CHUNK] = self.l1 * p + self.l2 * np.conj(p) + self.l3 + 0.5 * (u[0] + 1j * u[1])
+            out[s : s + CHUNK] = self._value(p, *self._terms(p))
         return out.reshape(z.shape)
 
     def _wirtinger(self, z):
@@ -181,9 +184,7 @@ class ThinPlateSpline(Transform):
         for s in range(0, flat.size, CHUNK):
             p = flat[s : s + CHUNK]
             r2, lg = self._terms(p)
-            r2 *= lg
-            u = [r2 @ v for v in self._wval]
-            val[s : s + CHUNK] = self.l1 * p + self.l2 * np.conj(p) + self.l3 + 0.5 * (u[0] + 1j * u[1])
+            val[s : s + CHUNK] = self._value(p, r2, lg)
             # sum_j ½ (L_j + 1) b_j conj(p - c_j), and the same with (p - c_j)
             g = [lg @ v for v in self._wder]
             sb, sbcc, sbc = self._sums
@@ -197,9 +198,8 @@ class ThinPlateSpline(Transform):
     @property
     def affine_inverse(self):
         """(mu1, mu2, mu3): the inverse of the R-linear part, the Newton seed."""
-        det = abs(self.l1) ** 2 - abs(self.l2) ** 2
-        mu1, mu2 = np.conj(self.l1) / det, -self.l2 / det
-        return mu1, mu2, -(mu1 * self.l3 + mu2 * np.conj(self.l3))
+        mu = RLinear(self.l1, self.l2, self.l3).inverse
+        return mu.l1, mu.l2, mu.l3
 
     @property
     def inverse(self):
