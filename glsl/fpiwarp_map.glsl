@@ -13,13 +13,42 @@
 //   FPW_INT_TEXTURE (source is an unsigned integer texture),
 //   FPW_TILED (the source texture is one tile of a larger image, see below),
 //   FPW_HW_FILTER (the texture unit filters: the explicit fast option),
+//   FPW_GATHER + FPW_CHANNELS (order 1 through textureGather, see below),
+//   FPW_HOT_STAGES (rows forwarded as flat varyings, see fpw_row),
 //   FPW_ACCUMULATE / FPW_OUT_INT (the fragment output kind, see fpw_emit).
+
+#ifdef FPW_GATHER
+// textureGather with a component argument (GLSL 4.00 core).
+#extension GL_ARB_gpu_shader5 : require
+#endif
 
 // The parameter block: row 0 header, then the stages (params.py docstring).
 // std140 gives an array of vec4 a stride of 16 bytes: no padding traps.
 layout(std140) uniform FpiwarpParams {
     vec4 fpw_rows[FPW_MAX_ROWS];
 };
+
+// Row i of the block. In a full-screen pass (fullscreen.vert) specialized
+// to a kind of map, the host defines FPW_HOT_STAGES: the rows read for
+// every pixel of an FPI (FPW_ROW_PRE .. FPW_ROW_L3 of each of the first
+// FPW_HOT_STAGES stages) then arrive as flat varyings written once by the
+// vertex stage. Same values, bit for bit; but Mesa's llvmpipe loads a
+// uniform again for every pixel (about 5 ms per vec4 per 4K frame on two
+// cores), a flat varying once per triangle. With constant `i` (a
+// specialized program) the choice below folds away.
+#ifdef FPW_HOT_STAGES
+flat in vec4 fpw_hot[FPW_HOT_ROWS * FPW_HOT_STAGES];
+#endif
+vec4 fpw_row(int i) {
+#ifdef FPW_HOT_STAGES
+    int k = (i - 1) / FPW_STAGE_ROWS;
+    int r = (i - 1) - k * FPW_STAGE_ROWS;
+    if (i >= 1 && k < FPW_HOT_STAGES && r >= FPW_ROW_PRE && r < FPW_ROW_PRE + FPW_HOT_ROWS) {
+        return fpw_hot[FPW_HOT_ROWS * k + r - FPW_ROW_PRE];
+    }
+#endif
+    return fpw_rows[i];
+}
 
 // A quiet NaN from its bits: 0.0 / 0.0 may be folded away by a compiler.
 float fpw_nan() { return uintBitsToFloat(0x7fc00000u); }
@@ -45,8 +74,8 @@ vec2 fpw_cdiv(vec2 a, vec2 b) {
 // ---- cores -----------------------------------------------------------------
 // _tps: the thin-plate spline core and its Wirtinger derivatives at p.
 void fpw_tps(vec2 p, int base, int n, out vec2 val, out vec2 dz, out vec2 dzb) {
-    vec4 l12 = fpw_rows[base + FPW_ROW_L12];
-    vec2 l3 = fpw_rows[base + FPW_ROW_L3].xy;
+    vec4 l12 = fpw_row(base + FPW_ROW_L12);
+    vec2 l3 = fpw_row(base + FPW_ROW_L3).xy;
     val = fpw_cmul(l12.xy, p) + fpw_cmul(l12.zw, fpw_conj(p)) + l3;
     dz = l12.xy;
     dzb = l12.zw;
@@ -108,20 +137,20 @@ vec2 fpw_stage_of(vec2 z, int base, int core, int n_regions) {
         }
     }
     if (best > 0.0) return outside;  // the reference's final where(best > 0, ...)
-    vec4 pre = fpw_rows[base + FPW_ROW_PRE];      // q1, s1
-    vec4 scale = fpw_rows[base + FPW_ROW_SCALE];  // k1, k2
-    vec4 post = fpw_rows[base + FPW_ROW_POST];    // s2, q2
+    vec4 pre = fpw_row(base + FPW_ROW_PRE);      // q1, s1
+    vec4 scale = fpw_row(base + FPW_ROW_SCALE);  // k1, k2
+    vec4 post = fpw_row(base + FPW_ROW_POST);    // s2, q2
     vec2 u = z - pre.xy;
     vec2 p = fpw_cdiv(fpw_cmul(scale.xy, u), vec2(1.0, 0.0) - fpw_cmul(pre.zw, u));
     if (core == FPW_CORE_AFFINE) {
-        vec4 l12 = fpw_rows[base + FPW_ROW_L12];
-        vec2 l3 = fpw_rows[base + FPW_ROW_L3].xy;
+        vec4 l12 = fpw_row(base + FPW_ROW_L12);
+        vec2 l3 = fpw_row(base + FPW_ROW_L3).xy;
         p = fpw_cmul(l12.xy, p) + fpw_cmul(l12.zw, fpw_conj(p)) + l3;
     } else if (core == FPW_CORE_TPS) {
         vec2 dz, dzb;
         fpw_tps(p, base, n, p, dz, dzb);
     } else {
-        p = fpw_newton(p, base, n, iters, fpw_rows[base + FPW_ROW_L3].z);
+        p = fpw_newton(p, base, n, iters, fpw_row(base + FPW_ROW_L3).z);
     }
     return post.zw + fpw_cdiv(fpw_cmul(scale.zw, p), vec2(1.0, 0.0) - fpw_cmul(post.xy, p));
 }
@@ -152,18 +181,22 @@ vec2 fpw_map(vec2 z) {
 // ---- software sampling (_sampling.py) -------------------------------------
 // Integer images are integer textures read with texelFetch: weights and
 // sums are computed here in float, never by the texture unit.
+// FPW_GATHER_C(uv, c): channel c of the 2×2 texels around uv, as floats.
 #if defined(FPW_INT_TEXTURE)
 uniform usampler2D fpw_src;
 vec4 fpw_fetch(ivec2 ij) { return vec4(texelFetch(fpw_src, ij, 0)); }
+#define FPW_GATHER_C(uv, c) vec4(textureGather(fpw_src, uv, c))
 #elif defined(FPW_UNORM_TEXTURE)
 // uint8 as a normalized texture: texel v reads as v / 255 (the common,
 // fastest texture format of software rasterizers); * 255 gives v back to
 // within 1e-5, far below the rounding step.
 uniform sampler2D fpw_src;
 vec4 fpw_fetch(ivec2 ij) { return texelFetch(fpw_src, ij, 0) * FPW_UNORM_TEXTURE; }
+#define FPW_GATHER_C(uv, c) (textureGather(fpw_src, uv, c) * FPW_UNORM_TEXTURE)
 #else
 uniform sampler2D fpw_src;
 vec4 fpw_fetch(ivec2 ij) { return texelFetch(fpw_src, ij, 0); }
+#define FPW_GATHER_C(uv, c) textureGather(fpw_src, uv, c)
 #endif
 
 uniform ivec2 fpw_src_size;  // (W, H) of the whole source image
@@ -236,6 +269,60 @@ vec4 fpw_sample(vec2 pos) {
     pos = clamp(pos, vec2(-FPW_COORD_LIMIT), vec2(FPW_COORD_LIMIT));
     return fpw_hw_scale * texture(fpw_src, (pos + 0.5) / vec2(fpw_src_size));
 }
+#elif defined(FPW_GATHER)
+// Order 1 by textureGather, for 'constant', 'edge' and 'wrap' on untiled
+// sources: one call per channel returns that channel of the 2×2 taps, where
+// the texelFetch path below makes one call per tap (three calls instead of
+// four for RGB, one for gray; texture calls are the dearest operation on
+// llvmpipe). The host sets the texture's wrap mode (CLAMP_TO_EDGE, REPEAT
+// for 'wrap') so the texture unit places the taps as fpw_border does;
+// weights, cval and the order of the sum are those of the path below.
+vec4 fpw_sample(vec2 pos) {
+    if (!fpw_in_range(pos)) return fpw_cval_term();
+    vec2 base = floor(pos);
+    vec2 t = pos - base;
+    ivec2 size = fpw_src_size;
+    ivec2 i = ivec2(base);
+#if FPW_MODE == 3
+    i = ivec2(fpw_posmod(i.x, size.x), fpw_posmod(i.y, size.y));
+#else
+    i = clamp(i, ivec2(-2), size);  // farther out: the same taps ('edge'), none inside ('constant')
+#endif
+    // The corner the four texels share: (i + 1) / size, exact enough to
+    // pick them (texture sides <= 2^14, the sampler is off by < 2^-9 texel).
+    vec2 uv = (vec2(i) + 1.0) / vec2(size);
+    // Gathered components: x (i, j+1), y (i+1, j+1), z (i+1, j), w (i, j).
+    // Channels the texture lacks read as a texelFetch reads them: 0, alpha 1.
+    mat4 g = mat4(vec4(0.0), vec4(0.0), vec4(0.0), vec4(1.0));  // g[channel]
+    g[0] = FPW_GATHER_C(uv, 0);
+#if FPW_CHANNELS >= 2
+    g[1] = FPW_GATHER_C(uv, 1);
+#endif
+#if FPW_CHANNELS >= 3
+    g[2] = FPW_GATHER_C(uv, 2);
+#endif
+#if FPW_CHANNELS >= 4
+    g[3] = FPW_GATHER_C(uv, 3);
+#endif
+    mat4 taps = transpose(g);  // taps[k]: all channels of gathered component k
+    vec4 t00 = taps[3], t10 = taps[2], t01 = taps[0], t11 = taps[1];  // t<column><row>
+#if FPW_MODE == 0
+    bvec2 in0 = bvec2(i.x >= 0 && i.x < size.x, i.y >= 0 && i.y < size.y);
+    bvec2 in1 = bvec2(i.x + 1 >= 0 && i.x + 1 < size.x, i.y + 1 >= 0 && i.y + 1 < size.y);
+    vec4 cv = fpw_cval_term();
+    if (!(in0.x && in0.y)) t00 = cv;
+    if (!(in1.x && in0.y)) t10 = cv;
+    if (!(in0.x && in1.y)) t01 = cv;
+    if (!(in1.x && in1.y)) t11 = cv;
+#endif
+    float wx0 = 1.0 - t.x, wx1 = t.x, wy0 = 1.0 - t.y, wy1 = t.y;
+    vec4 out_ = vec4(0.0);
+    out_ += (wy0 * wx0) * t00;
+    out_ += (wy0 * wx1) * t10;
+    out_ += (wy1 * wx0) * t01;
+    out_ += (wy1 * wx1) * t11;
+    return out_;
+}
 #else
 // Taps per axis: _taps gives 1, 2 or 4 integer positions with weights.
 #if FPW_ORDER == 0
@@ -293,7 +380,7 @@ vec4 fpw_sample(vec2 pos) {
     }
     return out_;
 }
-#endif  // FPW_HW_FILTER
+#endif  // FPW_HW_FILTER / FPW_GATHER
 
 // to_dtype for integer outputs: floor(v + 0.5) clipped to [0, top].
 uvec4 fpw_round(vec4 v, float top) {

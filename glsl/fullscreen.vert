@@ -1,7 +1,37 @@
 #version 330
 // One triangle that covers the whole viewport, without vertex buffers
 // (draw 3 vertices with an attribute-less vertex array).
+//
+// It also hands the fragment stage the per-draw values it reads for every
+// pixel, as flat varyings (constant over the one triangle): Mesa's llvmpipe
+// loads a uniform again for every pixel, a flat varying once per triangle,
+// which makes a 4K warp about twice as fast there; GPUs do not care.
+//   FPW_HOT_STAGES: rows FPW_ROW_PRE .. FPW_ROW_PRE + FPW_HOT_ROWS - 1 of the
+//     first FPW_HOT_STAGES stages of the block (fpw_row in fpiwarp_map.glsl);
+//   FPW_FORWARD_DECLS / FPW_FORWARD: the fragment shader's own uniforms,
+//     declared here under their names and copied to flat outputs
+//     (gl_backend.forward_uniforms rewrites the fragment shader to match).
+#ifdef FPW_HOT_STAGES
+layout(std140) uniform FpiwarpParams {
+    vec4 fpw_rows[FPW_MAX_ROWS];
+};
+flat out vec4 fpw_hot[FPW_HOT_ROWS * FPW_HOT_STAGES];
+#endif
+#ifdef FPW_FORWARD_DECLS
+FPW_FORWARD_DECLS
+#endif
+
 void main() {
     vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
     gl_Position = vec4(p, 0.0, 1.0);
+#ifdef FPW_HOT_STAGES
+    for (int k = 0; k < FPW_HOT_STAGES; ++k) {
+        for (int j = 0; j < FPW_HOT_ROWS; ++j) {
+            fpw_hot[FPW_HOT_ROWS * k + j] = fpw_rows[1 + k * FPW_STAGE_ROWS + FPW_ROW_PRE + j];
+        }
+    }
+#endif
+#ifdef FPW_FORWARD
+    FPW_FORWARD
+#endif
 }

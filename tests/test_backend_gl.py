@@ -395,3 +395,90 @@ def test_calls_from_another_thread_are_refused(gl):
     t.start()
     t.join()
     assert errors and "thread" in errors[0]
+
+
+# --- per-draw values as flat varyings; order 1 by textureGather ------------------------
+
+
+def _warper(**options):
+    from fpiwarp.backends.gl_backend import GLWarper, shared_context
+
+    return GLWarper(shared_context(), **options)
+
+
+def _chain_of_fpis(n):
+    """n FPI stages (each FPI and its inverse in turn): a map of n stages."""
+    fpi = sample_fpi()
+    maps = [fpi if k % 2 == 0 else fpi.inverse for k in range(n)]
+    return Staged([s for m in maps for s in m.stages()], [s for m in maps[::-1] for s in m.inverse.stages()])
+
+
+def test_flat_varyings_give_the_same_pictures_as_uniforms(gl):
+    """Full-screen passes hand their uniforms and the FPI rows of up to
+    several stages to the fragment stage as flat varyings (a speed-up on
+    llvmpipe). Fewer slots mean fewer forwarded values, never other values:
+    plain uniforms (0 slots), uniforms only (10), all (the driver's)."""
+    img = make_image((48, 64, 3), np.uint8, seed=3)
+    maps = [sample_fpi(), _chain_of_fpis(6), MAPS["compound"](), region_map()]
+    warpers = {slots: _warper() for slots in (0, 10, None)}
+    for slots, warper in warpers.items():
+        if slots is not None:
+            warper.varying_slots = slots
+    try:
+        for transform in maps:
+            for order, mode in [(1, "constant"), (3, "reflect"), (0, "wrap")]:
+                cv = np.array([10.0, 20, 30])
+                outs = [w.warp_image(img, transform, (50, 66), order=order, mode=mode, cval=cv) for w in warpers.values()]
+                assert all(np.array_equal(o, outs[0]) for o in outs[1:])
+                assert_images_agree(outs[0], reference(img, transform, (50, 66), order, mode, cv)[0], np.uint8)
+    finally:
+        for w in warpers.values():
+            w.release()
+
+
+def test_flat_varyings_forward_what_fits():
+    from fpiwarp.backends.gl_backend import forward_uniforms, map_kind, shader_source
+
+    text, defines, n = forward_uniforms(shader_source("warp.frag", ("FPW_WITH_SAMPLER", "FPW_OUT_INT")))
+    assert n >= 3 and "uniform vec4 fpw_view;" not in text and "flat in vec4 fpw_view_fpwv;" in text
+    assert "uniform sampler2D fpw_src;" in text  # samplers and blocks stay
+    assert defines[0].startswith("FPW_FORWARD_DECLS ") and "fpw_view_fpwv = fpw_view;" in defines[1]
+    warper = _warper()
+    kind = map_kind(_chain_of_fpis(6).params())
+    fs_defines = ("FPW_WITH_SAMPLER", "FPW_ORDER 1", "FPW_MODE 0", kind)
+    for slots, hot in [(warper.varying_slots, min(6, (warper.varying_slots - 1 - n) // 5)), (n + 6, 1), (n + 1, 0)]:
+        warper.varying_slots = slots
+        vs, fs = warper._flat_values("warp.frag", fs_defines[1:], fs_defines)
+        assert ("#define FPW_HOT_STAGES" in fs) == (hot > 0)
+        if hot:
+            assert f"#define FPW_HOT_STAGES {hot}\n" in vs
+        assert "flat in vec4 fpw_view_fpwv;" in fs
+    warper.varying_slots = n  # not even the uniforms fit: plain uniforms
+    vs, fs = warper._flat_values("warp.frag", fs_defines[1:], fs_defines)
+    assert "uniform vec4 fpw_view;" in fs and "FPW_FORWARD" not in vs.split("#line")[0]
+    warper.release()
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_gather_sampling_equals_texel_fetch(gl, dtype):
+    """Order 1 through textureGather (one call per channel) gives the same
+    values as one texelFetch per tap, in every mode it serves, near and far
+    outside the source and through a pole."""
+    gather, fetch = _warper(), _warper(gather=False)
+    if not gather.gather:
+        pytest.skip("this context has neither GL 4.0 nor GL_ARB_gpu_shader5: no textureGather with components")
+    maps = [sample_fpi(), RLinear(1.1, 0.02j, -700 - 300j), Mobius(1, 0, 0.05, -1 - 0.5j).inverse]
+    try:
+        for channels in (1, 2, 3, 4):
+            img = make_image((48, 64, channels), dtype, seed=channels)
+            cval = np.linspace(0.1, 0.9, channels) * (1 if dtype is np.float32 else np.iinfo(dtype).max)
+            for transform in maps:
+                for mode in ("constant", "edge", "wrap"):
+                    a = gather.warp_image(img, transform, (40, 60), order=1, mode=mode, cval=cval)
+                    b = fetch.warp_image(img, transform, (40, 60), order=1, mode=mode, cval=cval)
+                    np.testing.assert_array_equal(a, b, err_msg=f"{channels} channels, {mode}")
+        assert any("FPW_GATHER" in key[2] for key in gather._programs)
+        assert not any("FPW_GATHER" in key[2] for key in fetch._programs)
+    finally:
+        gather.release()
+        fetch.release()

@@ -50,6 +50,11 @@ GL_REQUIRE = 330
 POINT_CHUNK = 1 << 20
 MAX_ROWS = 1 + P.MAX_STAGES * P.STAGE_ROWS
 GL_CLIP_DISTANCE0 = 0x3000
+#: The full-screen vertex shader, which forwards per-draw values to the
+#: fragment stage as flat varyings (see :func:`forward_uniforms`).
+FULLSCREEN = "fullscreen.vert"
+#: Rows per stage a full-screen pass forwards: ROW_PRE .. ROW_L3, all an FPI reads.
+HOT_ROWS = P.ROW_L3 - P.ROW_PRE + 1
 
 # Output attachments: integer formats for integer images (exact rounding in
 # the shader), float32 for float32.
@@ -145,6 +150,7 @@ def shader_source(name, defines=()):
         "FPW_CORE_AFFINE": P.CORE_AFFINE,
         "FPW_CORE_TPS": P.CORE_TPS,
         "FPW_COORD_LIMIT": f"{COORD_LIMIT:.1f}",
+        "FPW_HOT_ROWS": HOT_ROWS,
     }
     lines = [f"#define {k} {v}" for k, v in consts.items()]
     for d in defines:
@@ -153,6 +159,30 @@ def shader_source(name, defines=()):
     if not head.startswith("#version"):
         raise ValueError(f"glsl/{name} must start with a #version line")
     return head + sep + "\n".join(lines) + "\n#line 2\n" + rest
+
+
+# A plain uniform of a fragment shader: scalar or vector (not a sampler, a
+# block or an array), one declaration per line.
+_UNIFORM_DECL = re.compile(r"^[ \t]*uniform[ \t]+(float|int|uint|[iu]?vec[234])[ \t]+(\w+)[ \t]*;.*$", re.MULTILINE)
+
+
+def forward_uniforms(fragment_text):
+    """Turn a fragment shader's plain uniforms into flat inputs.
+
+    Each ``uniform T name;`` becomes ``flat in T name_fpwv;`` with
+    ``#define name name_fpwv``, so the shader's code is unchanged. Returns
+    the new text and the defines that make :data:`FULLSCREEN` declare the
+    uniforms under their own names (the host sets them as before) and copy
+    them to those outputs: ``(text, defines, n_forwarded)``. Values are
+    passed exactly (flat, no interpolation).
+    """
+    decls = _UNIFORM_DECL.findall(fragment_text)
+    text = _UNIFORM_DECL.sub(lambda m: f"flat in {m[1]} {m[2]}_fpwv;\n#define {m[2]} {m[2]}_fpwv", fragment_text)
+    if not decls:
+        return text, (), 0
+    declare = " ".join(f"uniform {t} {n}; flat out {t} {n}_fpwv;" for t, n in decls)
+    copy = " ".join(f"{n}_fpwv = {n};" for _, n in decls)
+    return text, (f"FPW_FORWARD_DECLS {declare}", f"FPW_FORWARD {copy}"), len(decls)
 
 
 def map_kind(block):
@@ -204,9 +234,14 @@ class GLWarper:
         Compile one program per kind of map (see :func:`map_kind`), several
         times faster on software rasterizers; False: one program reads the
         kind from the block at run time and serves every map.
+    gather : bool, optional
+        Sample order 1 ('constant', 'edge', 'wrap') with one textureGather
+        per channel instead of one texelFetch per tap: same values, fewer
+        texture calls. Default: where the context has GL 4.0 or
+        GL_ARB_gpu_shader5.
     """
 
-    def __init__(self, ctx=None, max_texture_size=None, ubo_binding=0, specialize=True):
+    def __init__(self, ctx=None, max_texture_size=None, ubo_binding=0, specialize=True, gather=None):
         self.ctx = ctx if ctx is not None else create_context()
         limits = [self.ctx.info["GL_MAX_TEXTURE_SIZE"], self.ctx.info.get("GL_MAX_RENDERBUFFER_SIZE") or 1 << 30]
         limits += list(self.ctx.info.get("GL_MAX_VIEWPORT_DIMS") or ())
@@ -215,8 +250,18 @@ class GLWarper:
             if int(max_texture_size) < 4:
                 raise ValueError(f"max_texture_size must be >= 4, got {max_texture_size}")
             self.max_size = min(self.max_size, int(max_texture_size))
+        info = self.ctx.info
+        components = [info.get("GL_MAX_FRAGMENT_INPUT_COMPONENTS") or 60,
+                      info.get("GL_MAX_VERTEX_OUTPUT_COMPONENTS") or 60]
+        if info.get("GL_MAX_VARYING_VECTORS"):
+            components.append(4 * info["GL_MAX_VARYING_VECTORS"])
+        #: vec4 slots between the vertex and fragment stages
+        self.varying_slots = min(components) // 4
         self.ubo_binding = ubo_binding
         self.specialize = specialize
+        if gather is None:
+            gather = self.ctx.version_code >= 400 or "GL_ARB_gpu_shader5" in self.ctx.extensions
+        self.gather = bool(gather)
         self.ubo = self.ctx.buffer(reserve=MAX_ROWS * 16)
         self.compile_count = 0  # programs built so far (one per kind)
         self._programs = {}
@@ -227,15 +272,17 @@ class GLWarper:
     # ---- resources
     def program(self, vertex, fragment=None, defines=(), varyings=()):
         """The compiled program for this kind, built on first use only."""
-        key = (vertex, fragment, tuple(defines), tuple(varyings))
+        defines = tuple(defines)
+        key = (vertex, fragment, defines, tuple(varyings))
         prog = self._programs.get(key)
         if prog is None:
-            prog = self.ctx.program(
-                vertex_shader=shader_source(vertex, defines),
-                fragment_shader=shader_source(fragment, ("FPW_WITH_SAMPLER",) + tuple(defines))
-                if fragment else None,
-                varyings=list(varyings),
-            )
+            vs_defines, fs_defines = defines, ("FPW_WITH_SAMPLER",) + defines
+            fs = shader_source(fragment, fs_defines) if fragment else None
+            if fragment and vertex == FULLSCREEN:
+                vs, fs = self._flat_values(fragment, vs_defines, fs_defines)
+            else:
+                vs = shader_source(vertex, vs_defines)
+            prog = self.ctx.program(vertex_shader=vs, fragment_shader=fs, varyings=list(varyings))
             block = prog.get("FpiwarpParams", None)
             if block is not None:
                 block.binding = self.ubo_binding
@@ -243,6 +290,21 @@ class GLWarper:
             self._programs[key] = prog
             self.compile_count += 1
         return prog
+
+    def _flat_values(self, fragment, vs_defines, fs_defines):
+        """Sources of a full-screen pass whose fragment stage reads its
+        per-draw values as flat varyings (see glsl/fullscreen.vert): its
+        uniforms, and the FPI rows of as many stages as the varying slots
+        hold. Plain uniforms when even the first do not fit."""
+        text, _, n = forward_uniforms(shader_source(fragment, fs_defines))
+        free = self.varying_slots - 1 - n  # a slot each, at worst; one for gl_Position
+        if free < 0:
+            return shader_source(FULLSCREEN, vs_defines), shader_source(fragment, fs_defines)
+        stages = " ".join(d for d in fs_defines if isinstance(d, str) and d.startswith("FPW_STAGES "))
+        hot = min(stages.count("fpw_stage_of("), free // HOT_ROWS)
+        extra = (f"FPW_HOT_STAGES {hot}",) if hot else ()
+        text, forward, _ = forward_uniforms(shader_source(fragment, fs_defines + extra))
+        return shader_source(FULLSCREEN, vs_defines + extra + forward), text
 
     def set_map(self, block):
         """Upload a parameter block (``Transform.params()``): values only.
@@ -286,7 +348,13 @@ class GLWarper:
         return vao
 
     def release(self):
-        """Free the GL objects made here (not the context)."""
+        """Free the GL objects made here (not the context). The caller's
+        framebuffer stays bound; where one of these was, framebuffer 0 is
+        (a deleted one left bound breaks the next framebuffer moderngl makes)."""
+        ours = [self._dummy] + [obj for _, obj in self._cache.values() if isinstance(obj, moderngl.Framebuffer)]
+        bound = self.ctx.fbo
+        if bound is None or any(bound is fbo for fbo in ours):
+            bound = self.ctx.detect_framebuffer(0)
         for _, obj in self._cache.values():
             _release(obj, self._dummy)
         self._cache.clear()
@@ -297,6 +365,7 @@ class GLWarper:
             prog.release()
         self._programs.clear()
         self.ubo.release()
+        bound.use()
         self._dummy.release()
 
     # ---- per vertex
@@ -377,10 +446,13 @@ class GLWarper:
         tiled = h > self.max_size or w > self.max_size
         hw = hardware_filter and not tiled
         kind = [f"FPW_ORDER {order}", f"FPW_MODE {MODES.index(mode)}", *map_kind_]
+        gather = self.gather and not (hw or tiled) and path == "warp" and order == 1 and mode in _HW_MODES
         if hw:
             kind.append("FPW_HW_FILTER")
         elif _SOURCE_FORMATS[image.dtype][1]:
             kind.append(_SOURCE_FORMATS[image.dtype][1])
+        if gather:
+            kind += ["FPW_GATHER", f"FPW_CHANNELS {c}"]
         if tiled:
             kind += ["FPW_TILED", "FPW_ACCUMULATE"]
         elif image.dtype.kind == "u":
@@ -438,6 +510,8 @@ class GLWarper:
             return tex
         tex = self._texture("src", (w, h), c, _SOURCE_FORMATS[image.dtype][0])
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        # where textureGather places the taps (FPW_GATHER; texelFetch ignores it)
+        tex.repeat_x = tex.repeat_y = mode == "wrap"
         tex.write(image)
         return tex
 
