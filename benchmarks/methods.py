@@ -172,7 +172,10 @@ class MeanValue:
         scale = np.max(np.abs(v - v.mean(axis=0)))
         eps = 1e-14 * scale
         with np.errstate(divide="ignore", invalid="ignore"):
-            tan_half = (r * r1 - dot) / (2 * area)  # tan(alpha_i / 2), alpha_i at p in (p, v_i, v_i+1)
+            # tan(alpha_i / 2), alpha_i the angle at p in (p, v_i, v_i+1): of its two
+            # forms, the one without cancellation (the other loses digits as
+            # alpha -> 0, p near an edge's line beyond the edge; it is 0 / 0 on it)
+            tan_half = np.where(dot > 0, 2 * area / (r * r1 + dot), (r * r1 - dot) / (2 * area))
             w = (np.roll(tan_half, 1, axis=-1) + tan_half) / r
             lam = w / np.sum(w, axis=-1, keepdims=True)
         # boundary: on vertex i, or on edge i (area_i ~ 0 and dot_i < 0)

@@ -461,9 +461,11 @@ def test_flat_varyings_forward_what_fits():
 
 @pytest.mark.parametrize("dtype", DTYPES)
 def test_gather_sampling_equals_texel_fetch(gl, dtype):
-    """Order 1 through textureGather (one call per channel) gives the same
-    values as one texelFetch per tap, in every mode it serves, near and far
-    outside the source and through a pole."""
+    """Order 1 through textureGather (one call per channel) gives the values
+    of one texelFetch per tap, in every mode it serves, near and far outside
+    the source and through a pole: the same taps, weights and sums, so at
+    most a rounding tie apart (bit-identical on llvmpipe; NVIDIA's compiler
+    flips ~0.5% of uint8 ties by one level)."""
     gather, fetch = _warper(), _warper(gather=False)
     if not gather.gather:
         pytest.skip("this context has neither GL 4.0 nor GL_ARB_gpu_shader5: no textureGather with components")
@@ -476,7 +478,10 @@ def test_gather_sampling_equals_texel_fetch(gl, dtype):
                 for mode in ("constant", "edge", "wrap"):
                     a = gather.warp_image(img, transform, (40, 60), order=1, mode=mode, cval=cval)
                     b = fetch.warp_image(img, transform, (40, 60), order=1, mode=mode, cval=cval)
-                    np.testing.assert_array_equal(a, b, err_msg=f"{channels} channels, {mode}")
+                    diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
+                    where = f"{channels} channels, {mode}, {type(transform).__name__}"
+                    assert diff.max() <= LEVEL[dtype] * (1 + 1e-6), where
+                    assert np.mean(diff == 0) >= 0.99, where
         assert any("FPW_GATHER" in key[2] for key in gather._programs)
         assert not any("FPW_GATHER" in key[2] for key in fetch._programs)
     finally:
