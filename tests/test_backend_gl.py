@@ -487,3 +487,33 @@ def test_gather_sampling_equals_texel_fetch(gl, dtype):
     finally:
         gather.release()
         fetch.release()
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
+    """3-channel pictures read back through the RGB32UI pack pass (4, 2 or 1
+    pixels per texel) equal the driver's own RGB readback: widths that are
+    and are not multiples of 4, output tiles, the mesh path."""
+    packed, direct = _warper(pack_rgb=True), _warper(pack_rgb=False)
+    small = _warper(pack_rgb=True, max_texture_size=16)
+    try:
+        for shape in [(48, 64), (37, 61), (5, 1)]:
+            img = make_image(shape + (3,), dtype, seed=shape[1])
+            cval = np.array([0.2, 0.5, 0.9]) * (1 if dtype is np.float32 else np.iinfo(dtype).max)
+            for order, mode in [(1, "constant"), (3, "reflect")]:
+                a = packed.warp_image(img, sample_fpi(), shape, order=order, mode=mode, cval=cval)
+                b = direct.warp_image(img, sample_fpi(), shape, order=order, mode=mode, cval=cval)
+                np.testing.assert_array_equal(a, b)
+            out = (40, 30)  # larger than the 16 px textures of `small`: the output is tiled
+            small_img = img[:16, :16]
+            np.testing.assert_array_equal(
+                small.warp_image(small_img, RLinear(0.9, 0.05j, 1 + 2j), out, order=1, mode="edge", cval=cval),
+                direct.warp_image(small_img, RLinear(0.9, 0.05j, 1 + 2j), out, order=1, mode="edge", cval=cval))
+            np.testing.assert_array_equal(
+                packed.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval),
+                direct.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval))
+        assert any(key[1] == "pack_rgb.frag" for key in packed._programs)
+        assert not any(key[1] == "pack_rgb.frag" for key in direct._programs)
+    finally:
+        for w in (packed, direct, small):
+            w.release()

@@ -35,6 +35,7 @@ thread.
 """
 
 import re
+import sys
 import threading
 
 import moderngl  # missing: the registry reports "cannot import moderngl"
@@ -239,9 +240,14 @@ class GLWarper:
         per channel instead of one texelFetch per tap: same values, fewer
         texture calls. Default: where the context has GL 4.0 or
         GL_ARB_gpu_shader5.
+    pack_rgb : bool, optional
+        Read 3-channel pictures back through a pass that packs them into
+        RGB32UI texels (``glsl/pack_rgb.frag``): a copy instead of the
+        driver's per-pixel conversion. Default: on little-endian hosts.
     """
 
-    def __init__(self, ctx=None, max_texture_size=None, ubo_binding=0, specialize=True, gather=None):
+    def __init__(self, ctx=None, max_texture_size=None, ubo_binding=0, specialize=True, gather=None,
+                 pack_rgb=None):
         self.ctx = ctx if ctx is not None else create_context()
         limits = [self.ctx.info["GL_MAX_TEXTURE_SIZE"], self.ctx.info.get("GL_MAX_RENDERBUFFER_SIZE") or 1 << 30]
         limits += list(self.ctx.info.get("GL_MAX_VIEWPORT_DIMS") or ())
@@ -262,6 +268,7 @@ class GLWarper:
         if gather is None:
             gather = self.ctx.version_code >= 400 or "GL_ARB_gpu_shader5" in self.ctx.extensions
         self.gather = bool(gather)
+        self.pack_rgb = sys.byteorder == "little" if pack_rgb is None else bool(pack_rgb)
         self.ubo = self.ctx.buffer(reserve=MAX_ROWS * 16)
         self.compile_count = 0  # programs built so far (one per kind)
         self._programs = {}
@@ -532,11 +539,35 @@ class GLWarper:
         else:
             vao.render(moderngl.TRIANGLES, vertices=3)
         dest = out[y0:y1, x0:x1]
-        if dest.flags.c_contiguous:
+        if c == 3 and self.pack_rgb:
+            self._read_packed(fbo, size, image.dtype, dest)
+        elif dest.flags.c_contiguous:
             fbo.read_into(dest, viewport=(0, 0) + size, components=c, dtype=dt, alignment=1)
         else:
             data = fbo.read(viewport=(0, 0) + size, components=c, dtype=dt, alignment=1)
             dest[...] = np.frombuffer(data, dtype=image.dtype).reshape(dest.shape)
+
+    def _read_packed(self, fbo, size, dtype, dest):
+        """Read the (w, h) corner of ``fbo`` (a 3-channel picture in an RGBA
+        target) into ``dest`` through the pack pass of glsl/pack_rgb.frag."""
+        w, h = size
+        per = 4 // dtype.itemsize  # pixels per 12-byte texel
+        full_w, full_h = fbo.size
+        packed = self._target("packed", (-(-full_w // per), full_h), 3, "u4")
+        pw = -(-w // per)
+        packed.viewport = (0, 0, pw, h)
+        packed.use()
+        prog = self.program(FULLSCREEN, "pack_rgb.frag",
+                            (f"FPW_PACK_PIXELS {per}",) + (("FPW_PACK_FLOAT",) if dtype.kind == "f" else ()))
+        fbo.color_attachments[0].use(1)
+        _set(prog, "fpw_unpacked", 1)
+        self._fullscreen(prog).render(moderngl.TRIANGLES, vertices=3)
+        if pw * per == w and dest.flags.c_contiguous:
+            packed.read_into(dest, viewport=(0, 0, pw, h), components=3, dtype="u4", alignment=1)
+        else:
+            rows = np.empty((h, pw * per, 3), dtype=dtype)
+            packed.read_into(rows, viewport=(0, 0, pw, h), components=3, dtype="u4", alignment=1)
+            dest[...] = rows[:, :w]
 
     def _render_tiled(self, image, out, prog, vao, fill, cval):
         """Source above the size limit: per output tile, sum one additive
