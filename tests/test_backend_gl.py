@@ -463,9 +463,11 @@ def test_flat_varyings_forward_what_fits():
 def test_gather_sampling_equals_texel_fetch(gl, dtype):
     """Order 1 through textureGather (one call per channel) gives the values
     of one texelFetch per tap, in every mode it serves, near and far outside
-    the source and through a pole: the same taps, weights and sums, so at
-    most a rounding tie apart (bit-identical on llvmpipe; NVIDIA's compiler
-    flips ~0.5% of uint8 ties by one level)."""
+    the source and through a pole: the same taps, weights and sums, so
+    float32 rounding apart (bit-identical on llvmpipe; on NVIDIA float32
+    results differ by an ulp and integers by one level at rounding ties, up
+    to 7% of pixels where cval is a tie like 25.5). A wrong tap would be
+    tens of levels off on these random images."""
     gather, fetch = _warper(), _warper(gather=False)
     if not gather.gather:
         pytest.skip("this context has neither GL 4.0 nor GL_ARB_gpu_shader5: no textureGather with components")
@@ -480,8 +482,7 @@ def test_gather_sampling_equals_texel_fetch(gl, dtype):
                     b = fetch.warp_image(img, transform, (40, 60), order=1, mode=mode, cval=cval)
                     diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
                     where = f"{channels} channels, {mode}, {type(transform).__name__}"
-                    assert diff.max() <= LEVEL[dtype] * (1 + 1e-6), where
-                    assert np.mean(diff == 0) >= 0.99, where
+                    assert diff.max() <= (1e-6 if dtype is np.float32 else 1.0), where
         assert any("FPW_GATHER" in key[2] for key in gather._programs)
         assert not any("FPW_GATHER" in key[2] for key in fetch._programs)
     finally:
