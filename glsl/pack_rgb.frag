@@ -1,5 +1,6 @@
 #version 330
-// Packs a 3-channel picture into 12-byte texels (RGB32UI) for the readback.
+// Packs a 3-channel picture into 12-byte texels (RGB32UI) for the readback
+// (the mesh path; warp.frag packs its own pixels, FPW_PACK_PIXELS).
 // Reading 3 channels out of an RGBA target makes the driver convert every
 // pixel on the CPU (a 4K uint8 frame: ~107 ms on NVIDIA's driver, ~15 ms on
 // llvmpipe); an RGB32UI target reads back as a plain copy (~3 ms), and this
@@ -8,6 +9,7 @@
 // FPW_PACK_PIXELS pixels of 3 channels per texel, 4 (uint8), 2 (uint16) or
 // 1 (float32, FPW_PACK_FLOAT: the bits as they are). Bytes go in memory
 // order on a little-endian host (the host checks).
+#include "pack.glsl"
 #ifdef FPW_PACK_FLOAT
 uniform sampler2D fpw_unpacked;
 uvec4 fpw_bits(int x, int y) { return floatBitsToUint(texelFetch(fpw_unpacked, ivec2(x, y), 0)); }
@@ -23,14 +25,9 @@ void main() {
     int x = FPW_PACK_PIXELS * int(gl_FragCoord.x);
     // Texels beyond the picture's width give padding that the host drops.
 #if FPW_PACK_PIXELS == 4
-    uvec3 a = fpw_bits(x, y).rgb, b = fpw_bits(x + 1, y).rgb;
-    uvec3 c = fpw_bits(x + 2, y).rgb, d = fpw_bits(x + 3, y).rgb;
-    fpw_packed = uvec3(a.r | (a.g << 8) | (a.b << 16) | (b.r << 24),
-                       b.g | (b.b << 8) | (c.r << 16) | (c.g << 24),
-                       c.b | (d.r << 8) | (d.g << 16) | (d.b << 24));
+    fpw_packed = fpw_pack(fpw_bits(x, y).rgb, fpw_bits(x + 1, y).rgb, fpw_bits(x + 2, y).rgb, fpw_bits(x + 3, y).rgb);
 #elif FPW_PACK_PIXELS == 2
-    uvec3 a = fpw_bits(x, y).rgb, b = fpw_bits(x + 1, y).rgb;
-    fpw_packed = uvec3(a.r | (a.g << 16), a.b | (b.r << 16), b.g | (b.b << 16));
+    fpw_packed = fpw_pack(fpw_bits(x, y).rgb, fpw_bits(x + 1, y).rgb);
 #else
     fpw_packed = fpw_bits(x, y).rgb;
 #endif

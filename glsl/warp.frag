@@ -13,10 +13,14 @@
 uniform vec4 fpw_view;
 
 void main() {
-    vec2 xy = fpw_view.xy + fpw_view.zw * (gl_FragCoord.xy - 0.5);
-#ifdef FPW_FILL
+#if defined(FPW_PACK_PIXELS)
+    // Window column j holds output columns FPW_PACK_PIXELS * j + k.
+    vec2 xy = fpw_view.xy + fpw_view.zw * vec2(FPW_PACK_PIXELS * (gl_FragCoord.x - 0.5), gl_FragCoord.y - 0.5);
+    fpw_emit_packed(xy, fpw_view.z);
+#elif defined(FPW_FILL)
     fpw_emit(fpw_cval);
 #else
+    vec2 xy = fpw_view.xy + fpw_view.zw * (gl_FragCoord.xy - 0.5);
     fpw_emit(fpw_sample(fpw_map(xy)));
 #endif
 }

@@ -492,9 +492,10 @@ def test_gather_sampling_equals_texel_fetch(gl, dtype):
 
 @pytest.mark.parametrize("dtype", DTYPES)
 def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
-    """3-channel pictures read back through the RGB32UI pack pass (4, 2 or 1
-    pixels per texel) equal the driver's own RGB readback: widths that are
-    and are not multiples of 4, output tiles, the mesh path."""
+    """3-channel pictures read back as RGB32UI texels (4, 2 or 1 pixels per
+    texel), packed by the warp shader itself (FPI, order <= 1) or by a pass
+    (cubic, the mesh path), equal the driver's own RGB readback: widths that
+    are and are not multiples of 4, output tiles, hardware filtering."""
     packed, direct = _warper(pack_rgb=True), _warper(pack_rgb=False)
     small = _warper(pack_rgb=True, max_texture_size=16)
     try:
@@ -505,6 +506,9 @@ def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
                 a = packed.warp_image(img, sample_fpi(), shape, order=order, mode=mode, cval=cval)
                 b = direct.warp_image(img, sample_fpi(), shape, order=order, mode=mode, cval=cval)
                 np.testing.assert_array_equal(a, b)
+            np.testing.assert_array_equal(
+                packed.warp_image(img, sample_fpi(), shape, order=1, mode="edge", cval=cval, hardware_filter=True),
+                direct.warp_image(img, sample_fpi(), shape, order=1, mode="edge", cval=cval, hardware_filter=True))
             out = (40, 30)  # larger than the 16 px textures of `small`: the output is tiled
             small_img = img[:16, :16]
             np.testing.assert_array_equal(
@@ -513,8 +517,10 @@ def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
             np.testing.assert_array_equal(
                 packed.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval),
                 direct.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval))
-        assert any(key[1] == "pack_rgb.frag" for key in packed._programs)
-        assert not any(key[1] == "pack_rgb.frag" for key in direct._programs)
+        in_shader = [key for key in packed._programs if key[1] == "warp.frag" and
+                     any(d.startswith("FPW_PACK_PIXELS") for d in key[2])]
+        assert in_shader and any(key[1] == "pack_rgb.frag" for key in packed._programs)
+        assert not any("pack" in str(key) or "PACK" in str(key) for key in direct._programs)
     finally:
         for w in (packed, direct, small):
             w.release()

@@ -134,7 +134,11 @@ def shader_source(name, defines=()):
     """The text of ``glsl/name`` with ``#include "..."`` expanded and the
     block layout constants (from :mod:`fpiwarp.params`) plus ``defines``
     inserted after the ``#version`` line."""
-    text = _INCLUDE.sub(lambda m: source("glsl", m.group(1)), source("glsl", name))
+    text = source("glsl", name)
+    for _ in range(4):  # includes may include (a few levels)
+        text = _INCLUDE.sub(lambda m: source("glsl", m.group(1)), text)
+    if _INCLUDE.search(text):
+        raise ValueError(f"glsl/{name}: #include nested too deeply")
     consts = {
         "FPW_MAX_ROWS": MAX_ROWS,
         "FPW_STAGE_ROWS": P.STAGE_ROWS,
@@ -177,7 +181,7 @@ def forward_uniforms(fragment_text):
     them to those outputs: ``(text, defines, n_forwarded)``. Values are
     passed exactly (flat, no interpolation).
     """
-    decls = _UNIFORM_DECL.findall(fragment_text)
+    decls = list(dict((n, (t, n)) for t, n in _UNIFORM_DECL.findall(fragment_text)).values())  # once each (#if branches)
     text = _UNIFORM_DECL.sub(lambda m: f"flat in {m[1]} {m[2]}_fpwv;\n#define {m[2]} {m[2]}_fpwv", fragment_text)
     if not decls:
         return text, (), 0
@@ -198,6 +202,17 @@ def map_kind(block):
         core, _, n_regions, _ = (int(v) for v in block[base + P.ROW_HEADER])
         calls.append(f"z = fpw_stage_of(z, {base}, {core}, {n_regions});")
     return "FPW_STAGES " + " ".join(calls)
+
+
+_STAGE_CALL = re.compile(r"fpw_stage_of\(z, \d+, (\d+), (\d+)\)")
+
+
+def _short_map(defines):
+    """Whether a program specialized by these defines evaluates a map of
+    affine-core stages without regions (FPIs, Möbius and R-linear maps and
+    their compounds): a few dozen operations per pixel."""
+    calls = [m for d in defines if isinstance(d, str) for m in _STAGE_CALL.findall(d)]
+    return bool(calls) and all(int(core) == P.CORE_AFFINE and int(n) == 0 for core, n in calls)
 
 
 def _set(prog, name, value):
@@ -460,11 +475,20 @@ class GLWarper:
             kind.append(_SOURCE_FORMATS[image.dtype][1])
         if gather:
             kind += ["FPW_GATHER", f"FPW_CHANNELS {c}"]
+        mesh = path != "warp"
+        # 3-channel pictures read back as RGB32UI texels (see glsl/pack_rgb.frag).
+        # The warp shader packs its own pixels where its per-pixel code is
+        # short (FPI-like maps, order <= 1), else a pass packs them: a shader
+        # that inlines FPW_PACK_PIXELS copies of a TPS or cubic sampling
+        # compiles for seconds on llvmpipe.
+        packs = (c == 3 and self.pack_rgb and not tiled and not mesh and order <= 1
+                 and _short_map(map_kind_))
         if tiled:
             kind += ["FPW_TILED", "FPW_ACCUMULATE"]
+        elif packs:
+            kind.append(f"FPW_PACK_PIXELS {4 // image.dtype.itemsize}")
         elif image.dtype.kind == "u":
             kind.append("FPW_OUT_INT")
-        mesh = path != "warp"
         prog = self.program("mesh.vert", "mesh.frag", kind) if mesh else self.program(
             "fullscreen.vert", "warp.frag", kind)
         _set(prog, "fpw_src_size", (w, h))
@@ -492,7 +516,7 @@ class GLWarper:
                 src.use(0)
                 for y0, y1 in _tiles(oh, self.max_size):
                     for x0, x1 in _tiles(ow, self.max_size):
-                        self._draw_tile(image, out, prog, vao, fill, (x0, y0, x1, y1))
+                        self._draw_tile(image, out, prog, vao, fill, (x0, y0, x1, y1), packs)
         finally:
             if mesh:
                 vao.release()
@@ -522,46 +546,58 @@ class GLWarper:
         tex.write(image)
         return tex
 
-    def _draw_tile(self, image, out, prog, vao, fill, box):
-        """Render output pixels box = (x0, y0, x1, y1) and read them back."""
+    def _draw_tile(self, image, out, prog, vao, fill, box, packs=False):
+        """Render output pixels box = (x0, y0, x1, y1) and read them back;
+        ``packs``: ``prog`` writes packed RGB32UI texels (FPW_PACK_PIXELS)."""
         x0, y0, x1, y1 = box
         c = image.shape[2]
         size = (x1 - x0, y1 - y0)
         dt = _TEXTURE_DTYPES[image.dtype]
         full = (min(out.shape[1], self.max_size), min(out.shape[0], self.max_size))
+        dest = out[y0:y1, x0:x1]
+        self._view(prog, fill, (x0, y0), size)
+        if packs:
+            self._read_packed(self._draw_packed(lambda: vao.render(moderngl.TRIANGLES, vertices=3), full, size,
+                                                image.dtype), size, image.dtype, dest)
+            return
         fbo = self._target("out", full, _channels_format(c), dt)
         fbo.viewport = (0, 0) + size
         fbo.use()
-        self._view(prog, fill, (x0, y0), size)
         if fill is not None:
             self._fullscreen(fill).render(moderngl.TRIANGLES, vertices=3)
             self._draw_mesh(vao)
         else:
             vao.render(moderngl.TRIANGLES, vertices=3)
-        dest = out[y0:y1, x0:x1]
         if c == 3 and self.pack_rgb:
-            self._read_packed(fbo, size, image.dtype, dest)
+            prog = self.program(FULLSCREEN, "pack_rgb.frag", (f"FPW_PACK_PIXELS {4 // image.dtype.itemsize}",)
+                                + (("FPW_PACK_FLOAT",) if image.dtype.kind == "f" else ()))
+            fbo.color_attachments[0].use(1)
+            _set(prog, "fpw_unpacked", 1)
+            packed = self._draw_packed(lambda: self._fullscreen(prog).render(moderngl.TRIANGLES, vertices=3),
+                                       full, size, image.dtype)
+            self._read_packed(packed, size, image.dtype, dest)
         elif dest.flags.c_contiguous:
             fbo.read_into(dest, viewport=(0, 0) + size, components=c, dtype=dt, alignment=1)
         else:
             data = fbo.read(viewport=(0, 0) + size, components=c, dtype=dt, alignment=1)
             dest[...] = np.frombuffer(data, dtype=image.dtype).reshape(dest.shape)
 
-    def _read_packed(self, fbo, size, dtype, dest):
-        """Read the (w, h) corner of ``fbo`` (a 3-channel picture in an RGBA
-        target) into ``dest`` through the pack pass of glsl/pack_rgb.frag."""
-        w, h = size
+    def _draw_packed(self, draw, full, size, dtype):
+        """Run ``draw`` into the RGB32UI target that holds a (w, h) picture
+        of 3 channels of ``dtype`` packed (see glsl/pack.glsl); return it."""
         per = 4 // dtype.itemsize  # pixels per 12-byte texel
-        full_w, full_h = fbo.size
-        packed = self._target("packed", (-(-full_w // per), full_h), 3, "u4")
-        pw = -(-w // per)
-        packed.viewport = (0, 0, pw, h)
+        packed = self._target("packed", (-(-full[0] // per), full[1]), 3, "u4")
+        packed.viewport = (0, 0, -(-size[0] // per), size[1])
         packed.use()
-        prog = self.program(FULLSCREEN, "pack_rgb.frag",
-                            (f"FPW_PACK_PIXELS {per}",) + (("FPW_PACK_FLOAT",) if dtype.kind == "f" else ()))
-        fbo.color_attachments[0].use(1)
-        _set(prog, "fpw_unpacked", 1)
-        self._fullscreen(prog).render(moderngl.TRIANGLES, vertices=3)
+        draw()
+        return packed
+
+    def _read_packed(self, packed, size, dtype, dest):
+        """Read a packed (w, h) picture into ``dest`` (a copy: no per-pixel
+        conversion by the driver); columns past w are padding."""
+        w, h = size
+        per = 4 // dtype.itemsize
+        pw = -(-w // per)
         if pw * per == w and dest.flags.c_contiguous:
             packed.read_into(dest, viewport=(0, 0, pw, h), components=3, dtype="u4", alignment=1)
         else:
