@@ -30,6 +30,21 @@ def _fpi(w, h):
     )
 
 
+def remap_reference(img, transform):
+    """cv2.remap of ``img`` by ``transform`` with the float32 maps computed
+    here, outside any clock (a zero-argument callable), or None without cv2."""
+    try:
+        import cv2
+    except ImportError:
+        print("(cv2 not installed: pip install opencv-python-headless for the reference row)")
+        return None
+    h, w = img.shape[:2]
+    grid = np.stack(np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64)), -1)
+    src = transform.inverse(grid).astype(np.float32)
+    mx, my = np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
+    return lambda: cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
 def _methods(w, h, img):
     """name -> zero-argument callable, each one complete warp of ``img``."""
     from fpiwarp.backends import get_backend
@@ -38,16 +53,9 @@ def _methods(w, h, img):
     gl = get_backend("gl").warper
     cval = np.zeros(3)
     methods = {}
-    try:
-        import cv2
-
-        grid = np.stack(np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64)), -1)
-        src = f.inverse(grid).astype(np.float32)
-        mx, my = np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
-        methods["cv2.remap, precomputed maps"] = lambda: cv2.remap(
-            img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    except ImportError:
-        print("(cv2 not installed: pip install opencv-python-headless for the reference row)")
+    reference = remap_reference(img, f)
+    if reference is not None:
+        methods["cv2.remap, precomputed maps"] = reference
     methods["gl warp_image (software bilinear)"] = lambda: gl.warp_image(
         img, f, (h, w), order=1, mode="constant", cval=cval)
     methods["gl warp_image hardware_filter"] = lambda: gl.warp_image(

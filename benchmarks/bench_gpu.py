@@ -1,0 +1,221 @@
+"""GPU figures: every available backend at 1080p and 4K, end to end and on the device.
+
+For each backend, RGB and RGBA uint8 images warped by a generic FPI
+(bilinear, constant border):
+
+- "end to end": ``warp_image`` from a numpy array to a numpy array, the
+  upload, the kernel and the readback included (what the library call costs);
+- "on device, new map per frame": the same kernel with the image already on
+  the device and the result left there, a new map solved on the host and
+  its parameters uploaded every frame, each frame waited for (the preview's
+  frame while a corner is dragged): Warp and OpenCL relaunch the backend's
+  own kernel on its kept buffers; GL draws with
+  :class:`fpiwarp.gl.Renderer` into an offscreen framebuffer;
+- "on device, kernel only": one map, launches back to back (GL: each draw
+  waited for), i.e. the kernel's own throughput;
+- cv2.remap with maps precomputed outside the timing, on this machine's
+  CPU, as the reference row.
+
+Waiting is ``wp.synchronize_device`` (Warp), ``queue.finish`` (OpenCL),
+``ctx.finish`` (GL). Methods run round-robin; medians per method.
+
+Usage::
+
+    python3 benchmarks/bench_gpu.py [--sizes 1920x1080,3840x2160] [--repeat 7] [--frames 50]
+"""
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+import fpiwarp
+from fpiwarp.backends import backend_status, get_backend
+
+try:  # python3 -m benchmarks.bench_gpu
+    from .bench_gl import remap_reference
+except ImportError:  # python3 benchmarks/bench_gpu.py
+    from bench_gl import remap_reference
+
+
+def fpi_for(w, h, t=0.0):
+    """A generic FPI of a w×h frame; ``t`` moves one corner (a drag)."""
+    s = w / 64.0
+    return fpiwarp.FPI(
+        [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]],
+        [[4 * s, 3 * s], [w - 4 * s, -2 * s], [w + (3 + t) * s, h + 2 * s], [-3 * s, h - 4 * s]],
+    )
+
+
+def _frames(n, launch, sync, each=True):
+    """Seconds per frame over n launches: each one waited for (``each``: a
+    preview shows every frame), or only the last (throughput)."""
+    sync()
+    t0 = time.perf_counter()
+    for k in range(n):
+        launch(k)
+        if each:
+            sync()
+    sync()
+    return (time.perf_counter() - t0) / n
+
+
+def warp_on_device(be, img, w, h, n, new_map):
+    """Per-frame time of the Warp kernel on the backend's kept buffers."""
+    wp = be._wp
+    be.warp_image(img, fpi_for(w, h), (h, w), order=1, mode="constant", cval=np.zeros(img.shape[2]))
+    if be._on_cpu:  # the CPU path aliases numpy arrays instead of keeping buffers
+        src = wp.array(img, dtype=wp.uint8, device="cpu", copy=False)
+        out = wp.array(np.empty_like(img), dtype=wp.uint8, device="cpu", copy=False)
+    else:
+        src, out = be._buffers["image"], be._buffers["warped"]
+
+    blk = be._upload_block(fpi_for(w, h).inverse)
+
+    def launch(k):
+        b = be._upload_block(fpi_for(w, h, k % 8).inverse) if new_map else blk
+        be._launch(be._k.IMAGE_KERNELS[1], h, w, [b, src, out, 0, wp.vec4(0.0, 0.0, 0.0, 0.0), 255.0])
+
+    return _frames(n, launch, lambda: wp.synchronize_device(be.device), each=new_map)
+
+
+def opencl_on_device(be, img, w, h, n, new_map):
+    """Per-frame time of the OpenCL kernel on the backend's kept buffers."""
+    from fpiwarp.backends.opencl_backend import IMAGE_SLACK, sampling_options
+
+    c = img.shape[2]
+    be.warp_image(img, fpi_for(w, h), (h, w), order=1, mode="constant", cval=np.zeros(c))
+    src = be._buffer("image_in", img.nbytes + IMAGE_SLACK)
+    dst = be._buffer("image_out", img.nbytes)
+    cval4 = be._cl.cltypes.make_float4(0, 0, 0, 0)
+    cols = -(-w // be.local_x) * be.local_x
+
+    def prepare(k):
+        block, kind = be._upload_block(fpi_for(w, h, k % 8).inverse)
+        options = kind + sampling_options(img.dtype, c, 1, "constant")
+        options += (f"-DFW_LOCAL_X={be.local_x}", f"-DFW_VN={be.lanes}")
+        kern = be.kernel("warp_image", options)
+        kern.set_args(block, src, np.int32(w), np.int32(h), dst, np.int32(w), np.int32(h), cval4)
+        return kern
+
+    first = prepare(0)
+
+    def launch(k):
+        kern = prepare(k) if new_map else first
+        be._cl.enqueue_nd_range_kernel(be.queue, kern, (cols, h), (be.local_x, 1))
+
+    return _frames(n, launch, be.queue.finish, each=new_map)
+
+
+def gl_on_device(be, img, w, h, n, new_map):
+    """Per-frame time of the preview Renderer drawing into an offscreen target."""
+    from fpiwarp.gl import Renderer
+
+    warper = be.warper
+    ctx = warper.ctx
+    renderer = Renderer(ctx, order=1, warper=warper)
+    tex = ctx.texture((w, h), 4, dtype="f1")
+    fbo = ctx.framebuffer(color_attachments=[tex])
+    try:
+        renderer.set_image(img)
+        renderer.set_transform(fpi_for(w, h))
+        fbo.use()
+
+        def launch(k):
+            if new_map:
+                renderer.set_transform(fpi_for(w, h, k % 8))
+            renderer.draw((0, 0, w, h), y_down=True)
+
+        # every frame waited for: llvmpipe skips drawing a full-screen frame
+        # that the next draw of the same scene covers
+        return _frames(n, launch, ctx.finish)
+    finally:
+        renderer.release()
+        fbo.release()
+        tex.release()
+
+
+ON_DEVICE = {"warp": warp_on_device, "opencl": opencl_on_device, "gl": gl_on_device}
+
+
+def device_of(name, be):
+    if name == "warp":
+        return f"warp {be.device}"
+    if name == "opencl":
+        return be.device_label
+    return be.warper.ctx.info["GL_RENDERER"]
+
+
+def run(sizes, repeat, frames, backends):
+    rows = []
+    for w, h in sizes:
+        for channels in (3, 4):
+            img = np.random.default_rng(0).integers(0, 256, (h, w, channels), dtype=np.uint8)
+            f = fpi_for(w, h)
+            methods = {}
+            reference = remap_reference(img, f)
+            if reference is not None:
+                methods["cv2.remap, precomputed maps (CPU)"] = reference
+            for name in backends:
+                be = get_backend(name)
+                methods[f"{name} end to end"] = lambda be=be: be.warp_image(
+                    img, f, (h, w), order=1, mode="constant", cval=np.zeros(channels))
+                for label, new_map in (("on device, new map per frame", True), ("on device, kernel only", False)):
+                    methods[f"{name} {label}"] = lambda be=be, name=name, new_map=new_map: ON_DEVICE[name](
+                        be, img, w, h, frames, new_map)
+            times = {k: [] for k in methods}
+            for fn in methods.values():  # warm-up: compile, allocate
+                fn()
+            for _ in range(repeat):
+                for k, fn in methods.items():
+                    t0 = time.perf_counter()
+                    out = fn()
+                    dt = time.perf_counter() - t0
+                    times[k].append(out if isinstance(out, float) else dt)
+            for k, ts in times.items():
+                rows.append((f"{w}x{h}", channels, k, statistics.median(ts), min(ts)))
+    return rows
+
+
+def markdown(rows, devices):
+    lines = ["| size | channels | method | median ms | min ms | frames/s | GB/s (in + out) | speed-up vs cv2.remap |",
+             "|---|---:|---|---:|---:|---:|---:|---:|"]
+    base = {(r[0], r[1]): r[3] for r in rows if r[2].startswith("cv2")}
+    for size, c, name, med, best in rows:
+        w, h = (int(v) for v in size.split("x"))
+        gbs = 2 * w * h * c / med / 1e9
+        ref = base.get((size, c))
+        ratio = f"{ref / med:.2f}x" if ref else "n/a"
+        lines.append(f"| {size} | {c} | {name} | {med * 1e3:.2f} | {best * 1e3:.2f} | {1 / med:.0f} | {gbs:.1f} | {ratio} |")
+    dev = "\n".join(f"- {k}: {v}" for k, v in devices.items())
+    return "Devices:\n" + dev + "\n\n" + "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--sizes", default="1920x1080,3840x2160", help="comma-separated WxH list")
+    parser.add_argument("--repeat", type=int, default=7, help="timed rounds per method")
+    parser.add_argument("--frames", type=int, default=50, help="launches per 'on device' timing")
+    parser.add_argument("--backends", default="warp,opencl,gl", help="comma-separated backends to time")
+    parser.add_argument("--out", help="also write the table to this markdown file")
+    args = parser.parse_args(argv)
+    sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.sizes.split(",")]
+    status = backend_status()
+    backends = []
+    for name in args.backends.split(","):
+        if status.get(name) is None:
+            backends.append(name)
+        else:
+            print(f"skipping {name}: {status.get(name, 'unknown backend')}")
+    devices = {name: device_of(name, get_backend(name)) for name in backends}
+    rows = run(sizes, args.repeat, args.frames, backends)
+    text = markdown(rows, devices)
+    print(text)
+    if args.out:
+        with open(args.out, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+
+if __name__ == "__main__":
+    main()
