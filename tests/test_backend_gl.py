@@ -524,3 +524,21 @@ def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
     finally:
         for w in (packed, direct, small):
             w.release()
+
+
+def test_without_rgb32ui_targets_rgb_is_read_back_directly(gl, monkeypatch):
+    """GL does not require RGB32UI to be renderable: where a driver refuses
+    it, 3-channel pictures are read back as RGB (slower on some drivers,
+    the same picture)."""
+    from fpiwarp.backends import gl_backend
+
+    assert isinstance(gl_backend._renders_rgb32ui(gl.ctx), bool)
+    monkeypatch.setattr(gl_backend, "_renders_rgb32ui", lambda ctx: False)
+    warper = _warper()
+    try:
+        assert not warper.pack_rgb
+        img = make_image((30, 41, 3), np.uint8)
+        compare_warp(warper, img, sample_fpi(), (30, 41), 1, "constant", [1, 2, 3])
+        assert not any("PACK" in str(key) for key in warper._programs)
+    finally:
+        warper.release()

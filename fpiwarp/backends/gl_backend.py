@@ -258,7 +258,9 @@ class GLWarper:
     pack_rgb : bool, optional
         Read 3-channel pictures back through a pass that packs them into
         RGB32UI texels (``glsl/pack_rgb.frag``): a copy instead of the
-        driver's per-pixel conversion. Default: on little-endian hosts.
+        driver's per-pixel conversion. Default: on little-endian hosts whose
+        driver renders into RGB32UI (GL does not require it; llvmpipe and
+        NVIDIA's driver do).
     """
 
     def __init__(self, ctx=None, max_texture_size=None, ubo_binding=0, specialize=True, gather=None,
@@ -283,7 +285,9 @@ class GLWarper:
         if gather is None:
             gather = self.ctx.version_code >= 400 or "GL_ARB_gpu_shader5" in self.ctx.extensions
         self.gather = bool(gather)
-        self.pack_rgb = sys.byteorder == "little" if pack_rgb is None else bool(pack_rgb)
+        if pack_rgb is None:
+            pack_rgb = sys.byteorder == "little" and _renders_rgb32ui(self.ctx)
+        self.pack_rgb = bool(pack_rgb)
         self.ubo = self.ctx.buffer(reserve=MAX_ROWS * 16)
         self.compile_count = 0  # programs built so far (one per kind)
         self._programs = {}
@@ -669,6 +673,22 @@ class GLWarper:
         finally:
             self.ctx.disable_direct(GL_CLIP_DISTANCE0)
             self.ctx.disable(moderngl.CULL_FACE)
+
+
+def _renders_rgb32ui(ctx):
+    """Whether ``ctx`` can draw into an RGB32UI texture (an optional
+    color-renderable format in GL); leaves the bound framebuffer bound."""
+    bound = ctx.fbo if ctx.fbo is not None else ctx.detect_framebuffer(0)
+    tex = ctx.texture((1, 1), 3, dtype="u4")
+    try:
+        ctx.framebuffer(color_attachments=[tex]).release()
+        return True
+    except moderngl.Error:
+        return False
+    finally:
+        bound.use()
+        tex.release()
+        ctx.error  # noqa: B018 - clear the error an incomplete framebuffer may leave
 
 
 def _release(obj, dummy):
