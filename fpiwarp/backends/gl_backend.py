@@ -12,7 +12,12 @@ mirrors :func:`fpiwarp.params.evaluate` and :mod:`fpiwarp._sampling`:
   fastest format of software rasterizers), rounding in the shader into an
   integer framebuffer, so results match the numpy reference;
   ``hardware_filter=True`` lets the texture unit filter instead (GL
-  quantizes the weights);
+  quantizes the weights). What makes it fast on Mesa's llvmpipe, which
+  runs it on the CPU: per-draw values reach the fragment stage as flat
+  varyings rather than uniforms (:func:`forward_uniforms`), order 1 reads
+  one textureGather per channel instead of a texelFetch per tap, and
+  3-channel pictures come back as packed RGB32UI texels (a copy; the
+  driver's RGB readback converts every pixel, very slowly on NVIDIA's);
 * :func:`warp_image_mesh`: the paper's own way, a triangulated grid of the
   source deformed per vertex by the forward map and rasterized with
   texture mapping (no inverse needed).
