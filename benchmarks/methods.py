@@ -104,7 +104,7 @@ class Bilinear:
         k0 = cross(h, e)
         root = np.sqrt(np.maximum(k1 * k1 - 4 * k0 * k2, 0.0))
         big = -0.5 * (k1 + np.where(k1 >= 0, root, -root))
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a root at infinity: dropped below
             candidates = []
             for t in (k0 / big, big / k2):
                 den = e + g * t[..., None]
