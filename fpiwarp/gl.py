@@ -287,25 +287,25 @@ class Renderer:
         if method == "mesh":
             prog = self.warper.program("mesh.vert", "preview_mesh.frag", defines)
             # mesh.vert maps to the viewport from its corner: view of (0, 0, w, h)
-            glb._set(prog, "fpw_view", tuple(float(v) for v in self.view_params((0, 0) + viewport[2:], y_down)))
-            glb._set(prog, "fpw_viewport", (float(viewport[2]), float(viewport[3])))
+            glb.set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params((0, 0) + viewport[2:], y_down)))
+            glb.set_uniform(prog, "fpw_viewport", (float(viewport[2]), float(viewport[3])))
         else:
             prog = self.warper.program("fullscreen.vert", "preview.frag", defines)
-            glb._set(prog, "fpw_view", tuple(float(v) for v in self.view_params(viewport, y_down)))
-        glb._set(prog, "fpw_src_size", (w, h))
-        glb._set(prog, "fpw_cval", tuple(float(v) for v in cval4) if c in (2, 4) else (0.0, 0.0, 0.0, 0.0))
-        glb._set(prog, "pv_background", tuple(float(v) for v in bg))
-        glb._set(prog, "pv_checker", float(self.checker_size) if self.checkerboard else 0.0)
-        glb._set(prog, "pv_checker_mix", float(self.checker_mix))
-        glb._set(prog, "pv_heat", float(self.heat_mix) if self.heatmap else 0.0)
-        glb._set(prog, "pv_heat_max", float(self.heat_max))
-        glb._set(prog, "pv_dilation", -1.0 if self._dilation is None else self._dilation)
+            glb.set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params(viewport, y_down)))
+        glb.set_uniform(prog, "fpw_src_size", (w, h))
+        glb.set_uniform(prog, "fpw_cval", tuple(float(v) for v in cval4) if c in (2, 4) else (0.0, 0.0, 0.0, 0.0))
+        glb.set_uniform(prog, "pv_background", tuple(float(v) for v in bg))
+        glb.set_uniform(prog, "pv_checker", float(self.checker_size) if self.checkerboard else 0.0)
+        glb.set_uniform(prog, "pv_checker_mix", float(self.checker_mix))
+        glb.set_uniform(prog, "pv_heat", float(self.heat_mix) if self.heatmap else 0.0)
+        glb.set_uniform(prog, "pv_heat_max", float(self.heat_max))
+        glb.set_uniform(prog, "pv_dilation", -1.0 if self._dilation is None else self._dilation)
         self._texture.use(0)
         ctx.disable(glb.moderngl.BLEND)
         if method == "mesh":
             self._draw_mesh(prog, defines, cval4 if c in (2, 4) else bg, y_down)
         else:
-            self.warper._fullscreen(prog).render(glb.moderngl.TRIANGLES, vertices=3)
+            self.warper.fullscreen_vao(prog).render(glb.moderngl.TRIANGLES, vertices=3)
         if self.handles or self.outline:
             self._draw_overlays(viewport, y_down)
 
@@ -316,15 +316,15 @@ class Renderer:
         come out flipped straddle the pole, vertices at the pole clip."""
         ctx = self.ctx
         fill = self.warper.program("fullscreen.vert", "warp.frag", [*defines[:2], "FPW_FILL"])
-        glb._set(fill, "fpw_cval", tuple(float(v) for v in outside))
-        glb._set(fill, "fpw_out_scale", 1.0)
-        self.warper._fullscreen(fill).render(glb.moderngl.TRIANGLES, vertices=3)
+        glb.set_uniform(fill, "fpw_cval", tuple(float(v) for v in outside))
+        glb.set_uniform(fill, "fpw_out_scale", 1.0)
+        self.warper.fullscreen_vao(fill).render(glb.moderngl.TRIANGLES, vertices=3)
         h, w = self.image.shape[:2]
         step = float(self.mesh_step or max(2.0, max(h, w) / 256.0))
         key = (h, w, step)
         if self._mesh is None or self._mesh[0] != key:
             self._release_mesh()
-            verts, tris = glb._mesh(self.image.shape, step, None, None)
+            verts, tris = glb.grid_mesh(self.image.shape, step, None, None)
             self._mesh = (key, ctx.buffer(verts.astype(np.float32).tobytes()),
                           ctx.buffer(tris.astype(np.int32).tobytes()), {})
         _, vbo, ibo, vaos = self._mesh
@@ -413,13 +413,8 @@ class Renderer:
                 obj.release()
         self._vao = self._vbo = self._texture = None
         self._release_mesh()
-        if not self._owns_warper:
-            return
-        previous = _bound(self.ctx)
-        if previous is self.warper._dummy:
-            previous = self.ctx.detect_framebuffer(0)
-        self.warper.release()
-        previous.use()  # the warper deletes framebuffers: leave none of them bound
+        if self._owns_warper:
+            self.warper.release()  # leaves the caller's framebuffer bound
 
 
 def _bound(ctx):

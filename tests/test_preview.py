@@ -436,3 +436,28 @@ def test_renderer_release_keeps_a_shared_warper(gl_backend):
     img = np.arange(64 * 3, dtype=np.uint8).reshape(8, 8, 3)
     out = fpiwarp.warp_image(img, fpiwarp.RLinear(1), backend=gl_backend)
     assert np.array_equal(out, img)  # the backend still works
+
+
+def test_releasing_a_renderer_leaves_the_callers_framebuffer_bound(ctx, picture):
+    """A renderer that made its own warper frees it on release; the
+    framebuffer the caller drew into stays bound, and the next framebuffer
+    moderngl makes works (a deleted one left bound would break it)."""
+    from fpiwarp import gl as fgl
+
+    target = ctx.simple_framebuffer((W, H))
+    previous = ctx.fbo if ctx.fbo is not None else ctx.detect_framebuffer(0)
+    try:
+        renderer = fgl.Renderer(ctx)
+        renderer.set_image(picture)
+        renderer.set_transform(FPI(SRC, DST))
+        target.use()
+        renderer.draw((0, 0, W, H), y_down=True)
+        renderer.warp_full()  # binds the warper's own framebuffers
+        target.use()
+        renderer.release()
+        assert ctx.fbo is target
+        ctx.framebuffer(color_attachments=[ctx.texture((2, 2), 4)]).release()
+        assert ctx.error == "GL_NO_ERROR"
+    finally:
+        previous.use()
+        target.release()

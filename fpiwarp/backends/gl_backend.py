@@ -220,7 +220,7 @@ def _short_map(defines):
     return bool(calls) and all(int(core) == P.CORE_AFFINE and int(n) == 0 for core, n in calls)
 
 
-def _set(prog, name, value):
+def set_uniform(prog, name, value):
     """Set a uniform if the compiler kept it (unused ones are dropped)."""
     member = prog.get(name, None)
     if member is not None:
@@ -317,7 +317,7 @@ class GLWarper:
             block = prog.get("FpiwarpParams", None)
             if block is not None:
                 block.binding = self.ubo_binding
-            _set(prog, "fpw_src", 0)
+            set_uniform(prog, "fpw_src", 0)
             self._programs[key] = prog
             self.compile_count += 1
         return prog
@@ -372,7 +372,9 @@ class GLWarper:
             return self.ctx.framebuffer(color_attachments=tex)
         return self._cached(role, (size, components, dtype, cover), make)
 
-    def _fullscreen(self, prog):
+    def fullscreen_vao(self, prog):
+        """The attribute-less vertex array that draws ``prog`` (with
+        fullscreen.vert) over the viewport: ``.render(TRIANGLES, vertices=3)``."""
         vao = self._vao_empty.get(id(prog))
         if vao is None:
             vao = self._vao_empty[id(prog)] = self.ctx.vertex_array(prog, [])
@@ -459,7 +461,7 @@ class GLWarper:
         come out flipped (they straddle the pole) are dropped.
         """
         image, cval = _check_args(image, order, mode, cval)
-        verts, tris = _mesh(image.shape, grid_step, vertices, triangles)
+        verts, tris = grid_mesh(image.shape, grid_step, vertices, triangles)
         map_kind_ = self.set_map(transform.params())
         vbo = self.ctx.buffer(verts.astype(np.float32).tobytes())
         ibo = self.ctx.buffer(tris.astype(np.int32).tobytes())
@@ -500,10 +502,10 @@ class GLWarper:
             kind.append("FPW_OUT_INT")
         prog = self.program("mesh.vert", "mesh.frag", kind) if mesh else self.program(
             "fullscreen.vert", "warp.frag", kind)
-        _set(prog, "fpw_src_size", (w, h))
-        _set(prog, "fpw_cval", tuple(np.resize(cval, 4).astype(float)))
-        _set(prog, "fpw_top", float(np.iinfo(image.dtype).max) if image.dtype.kind == "u" else 0.0)
-        _set(prog, "fpw_out_scale", 1.0)
+        set_uniform(prog, "fpw_src_size", (w, h))
+        set_uniform(prog, "fpw_cval", tuple(np.resize(cval, 4).astype(float)))
+        set_uniform(prog, "fpw_top", float(np.iinfo(image.dtype).max) if image.dtype.kind == "u" else 0.0)
+        set_uniform(prog, "fpw_out_scale", 1.0)
         fill = None
         if mesh:
             fill_kind = [k for k in kind if k not in ("FPW_TILED", "FPW_ACCUMULATE")
@@ -511,12 +513,12 @@ class GLWarper:
             if "FPW_OUT_INT" not in fill_kind and image.dtype.kind == "u":
                 fill_kind.append("FPW_OUT_INT")
             fill = self.program("fullscreen.vert", "warp.frag", fill_kind)
-            _set(fill, "fpw_cval", tuple(np.resize(cval, 4).astype(float)))
-            _set(fill, "fpw_top", float(np.iinfo(image.dtype).max) if image.dtype.kind == "u" else 0.0)
-            _set(fill, "fpw_out_scale", 1.0)
+            set_uniform(fill, "fpw_cval", tuple(np.resize(cval, 4).astype(float)))
+            set_uniform(fill, "fpw_top", float(np.iinfo(image.dtype).max) if image.dtype.kind == "u" else 0.0)
+            set_uniform(fill, "fpw_out_scale", 1.0)
             vao = self.ctx.vertex_array(prog, [(path[1], "2f", "fpw_vertex")], index_buffer=path[2])
         else:
-            vao = self._fullscreen(prog)
+            vao = self.fullscreen_vao(prog)
         try:
             if tiled:
                 self._render_tiled(image, out, prog, vao, fill, cval)
@@ -540,7 +542,7 @@ class GLWarper:
             dt, scale = _HW_DTYPES[image.dtype]
             tex = self._texture("src_hw", (w, h), c, dt)
             tex.write(image)
-            _set(prog, "fpw_hw_scale", scale)
+            set_uniform(prog, "fpw_hw_scale", scale)
             filt = moderngl.NEAREST if order == 0 else moderngl.LINEAR
             border = tuple(np.resize(cval / scale, 4)) if mode == "constant" else None
             repeat = mode == "wrap"
@@ -573,7 +575,7 @@ class GLWarper:
         fbo.viewport = (0, 0) + size
         fbo.use()
         if fill is not None:
-            self._fullscreen(fill).render(moderngl.TRIANGLES, vertices=3)
+            self.fullscreen_vao(fill).render(moderngl.TRIANGLES, vertices=3)
             self._draw_mesh(vao)
         else:
             vao.render(moderngl.TRIANGLES, vertices=3)
@@ -581,8 +583,8 @@ class GLWarper:
             prog = self.program(FULLSCREEN, "pack_rgb.frag", (f"FPW_PACK_PIXELS {4 // image.dtype.itemsize}",)
                                 + (("FPW_PACK_FLOAT",) if image.dtype.kind == "f" else ()))
             fbo.color_attachments[0].use(1)
-            _set(prog, "fpw_unpacked", 1)
-            packed = self._draw_packed(lambda: self._fullscreen(prog).render(moderngl.TRIANGLES, vertices=3),
+            set_uniform(prog, "fpw_unpacked", 1)
+            packed = self._draw_packed(lambda: self.fullscreen_vao(prog).render(moderngl.TRIANGLES, vertices=3),
                                        full, size, image.dtype)
             self._read_packed(packed, size, image.dtype, dest)
         elif dest.flags.c_contiguous:
@@ -638,8 +640,8 @@ class GLWarper:
                 tex.use(0)
                 for i, (x0, y0, x1, y1) in enumerate(src_tiles):
                     tex.write(np.ascontiguousarray(image[y0:y1, x0:x1]), viewport=(0, 0, x1 - x0, y1 - y0))
-                    _set(prog, "fpw_tile", (x0, y0, x1 - x0, y1 - y0))
-                    _set(prog, "fpw_primary", 1 if i == 0 else 0)
+                    set_uniform(prog, "fpw_tile", (x0, y0, x1 - x0, y1 - y0))
+                    set_uniform(prog, "fpw_primary", 1 if i == 0 else 0)
                     if fill is not None:
                         self._draw_mesh(vao)
                     else:
@@ -657,8 +659,8 @@ class GLWarper:
     def _view(self, prog, fill, origin, size):
         for p in (prog, fill):
             if p is not None:
-                _set(p, "fpw_view", (float(origin[0]), float(origin[1]), 1.0, 1.0))
-                _set(p, "fpw_viewport", (float(size[0]), float(size[1])))
+                set_uniform(p, "fpw_view", (float(origin[0]), float(origin[1]), 1.0, 1.0))
+                set_uniform(p, "fpw_viewport", (float(size[0]), float(size[1])))
 
     def _draw_mesh(self, vao):
         """Draw the mesh with culling and clipping, then restore the state.
@@ -720,8 +722,10 @@ def _check_args(image, order, mode, cval):
     return np.ascontiguousarray(image), cval
 
 
-def _mesh(shape, grid_step, vertices, triangles):
-    """Source-space vertices and positively oriented triangles."""
+def grid_mesh(shape, grid_step, vertices, triangles):
+    """Source-space vertices and positively oriented triangles for the mesh
+    path: the caller's (checked) or a grid over an image of ``shape`` with
+    ``grid_step`` pixels between vertices."""
     if (vertices is None) != (triangles is None):
         raise ValueError("pass both vertices and triangles, or neither (default grid)")
     if vertices is None:
