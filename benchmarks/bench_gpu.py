@@ -13,6 +13,9 @@ For each backend, RGB and RGBA uint8 images warped by a generic FPI
   :class:`fpiwarp.gl.Renderer` into an offscreen framebuffer;
 - "on device, kernel only": one map, launches back to back (GL: each draw
   waited for), i.e. the kernel's own throughput;
+
+Each backend runs in a Python process of its own (``--one-process`` to
+share one): two GPU APIs in one process slowed each other's transfers.
 - cv2.remap with maps precomputed outside the timing, on this machine's
   CPU, as the reference row.
 
@@ -197,24 +200,47 @@ def main(argv=None):
     parser.add_argument("--sizes", default="1920x1080,3840x2160", help="comma-separated WxH list")
     parser.add_argument("--repeat", type=int, default=7, help="timed rounds per method")
     parser.add_argument("--frames", type=int, default=50, help="launches per 'on device' timing")
-    parser.add_argument("--backends", default="warp,opencl,gl", help="comma-separated backends to time")
-    parser.add_argument("--out", help="also write the table to this markdown file")
+    parser.add_argument("--backends", default="opencl,warp,gl", help="comma-separated backends to time")
+    parser.add_argument("--out", help="also write the tables to this markdown file")
+    parser.add_argument("--one-process", action="store_true",
+                        help="time all backends in this process (by default each runs in its own: two GPU "
+                             "APIs in one process slow each other's transfers)")
     args = parser.parse_args(argv)
+    names = [b for b in args.backends.split(",") if b]
+    if len(names) > 1 and not args.one_process:
+        text = "\n".join(_in_own_process(name, args) for name in names)
+    else:
+        text = _tables(names, args)
+    print(text)
+    if args.out:
+        with open(args.out, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+
+def _tables(names, args):
     sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.sizes.split(",")]
     status = backend_status()
     backends = []
-    for name in args.backends.split(","):
+    for name in names:
         if status.get(name) is None:
             backends.append(name)
         else:
             print(f"skipping {name}: {status.get(name, 'unknown backend')}")
     devices = {name: device_of(name, get_backend(name)) for name in backends}
-    rows = run(sizes, args.repeat, args.frames, backends)
-    text = markdown(rows, devices)
-    print(text)
-    if args.out:
-        with open(args.out, "w", encoding="utf-8") as fh:
-            fh.write(text)
+    return markdown(run(sizes, args.repeat, args.frames, backends), devices)
+
+
+def _in_own_process(name, args):
+    """The tables of one backend, timed by a fresh Python process."""
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, __file__, "--backends", name, "--sizes", args.sizes,
+           "--repeat", str(args.repeat), "--frames", str(args.frames)]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        return f"## {name}\n\nfailed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}\n"
+    return f"## {name}\n\n{done.stdout.strip()}\n"
 
 
 if __name__ == "__main__":

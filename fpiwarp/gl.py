@@ -417,9 +417,7 @@ class Renderer:
             self.warper.release()  # leaves the caller's framebuffer bound
 
 
-def _bound(ctx):
-    """The framebuffer bound now (moderngl's record), or framebuffer 0."""
-    return ctx.fbo if ctx.fbo is not None else ctx.detect_framebuffer(0)
+_bound = glb.bound_framebuffer
 
 
 def _display_rgba(values):

@@ -288,11 +288,12 @@ vec4 fpw_sample(vec2 pos) {
 #else
     i = clamp(i, ivec2(-2), size);  // farther out: the same taps ('edge'), none inside ('constant')
 #endif
-    // The corner the four texels share: (i + 1) / size, exact enough to
-    // pick them (texture sides <= 2^14, the sampler is off by < 2^-9 texel).
+    // The corner the four texels share: (i + 1) / size, within
+    // (i + 1) * 2^-24 texel of it (< 2^-8 for any texture side up to 2^16):
+    // far from the half texel that would pick other texels.
     vec2 uv = (vec2(i) + 1.0) / vec2(size);
     // Gathered components: x (i, j+1), y (i+1, j+1), z (i+1, j), w (i, j).
-    // Channels the texture lacks read as a texelFetch reads them: 0, alpha 1.
+    // Channels the image lacks are 0 (alpha 1); no output reads them.
     mat4 g = mat4(vec4(0.0), vec4(0.0), vec4(0.0), vec4(1.0));  // g[channel]
     g[0] = FPW_GATHER_C(uv, 0);
 #if FPW_CHANNELS >= 2
@@ -412,7 +413,7 @@ uniform float fpw_top;
 // or a float's bits.
 uvec3 fpw_stored(vec2 xy) {
     vec4 v = fpw_sample(fpw_map(xy));
-#if FPW_PACK_PIXELS == 1
+#if FPW_PACK_PIXELS == 1  // 4-byte channels: float32, stored as they are
     return floatBitsToUint(v.rgb);
 #else
     return fpw_round(v, fpw_top).rgb;

@@ -1,6 +1,8 @@
 #version 330
-// Packs a 3-channel picture into 12-byte texels (RGB32UI) for the readback
-// (the mesh path; warp.frag packs its own pixels, FPW_PACK_PIXELS).
+// Packs a 3-channel picture into 12-byte texels (RGB32UI) for the readback,
+// after passes that do not pack their own pixels (warp.frag does for
+// FPI-like maps at order <= 1: FPW_PACK_PIXELS; not for the mesh path,
+// cubic sampling, thin-plate splines, regions or generic programs).
 // Reading 3 channels out of an RGBA target makes the driver convert every
 // pixel on the CPU (a 4K uint8 frame: ~107 ms on NVIDIA's driver, ~15 ms on
 // llvmpipe); an RGB32UI target reads back as a plain copy (~3 ms), and this

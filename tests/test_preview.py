@@ -74,8 +74,10 @@ def _line_distance(p, a, b):
 
 def _frame(renderer, size):
     """Draw into an offscreen framebuffer; the RGB frame, top row first."""
+    from fpiwarp.backends.gl_backend import bound_framebuffer
+
     c = renderer.ctx
-    previous = c.fbo if c.fbo is not None else c.detect_framebuffer(0)
+    previous = bound_framebuffer(c)
     fbo = c.simple_framebuffer(size)
     try:
         fbo.use()
@@ -445,7 +447,7 @@ def test_releasing_a_renderer_leaves_the_callers_framebuffer_bound(ctx, picture)
     from fpiwarp import gl as fgl
 
     target = ctx.simple_framebuffer((W, H))
-    previous = ctx.fbo if ctx.fbo is not None else ctx.detect_framebuffer(0)
+    previous = ctx.detect_framebuffer(0)
     try:
         renderer = fgl.Renderer(ctx)
         renderer.set_image(picture)

@@ -195,29 +195,28 @@ def forward_uniforms(fragment_text):
     return text, (f"FPW_FORWARD_DECLS {declare}", f"FPW_FORWARD {copy}"), len(decls)
 
 
+def stage_kinds(block):
+    """(core, number of regions) of each stage of a parameter block."""
+    block = np.asarray(block)
+    rows = [block[1 + k * P.STAGE_ROWS + P.ROW_HEADER] for k in range(P.n_stages(block))]
+    return [(int(row[0]), int(row[2])) for row in rows]
+
+
 def map_kind(block):
     """The ``FPW_STAGES`` define that specializes a program to the kind of
     map in ``block``: its number of stages and each stage's core and number
     of regions. Values (quad corners, TPS weights, ...) stay in the block, so
     every FPI shares one program, and moving points never recompiles."""
-    block = np.asarray(block)
-    calls = []
-    for k in range(P.n_stages(block)):
-        base = 1 + k * P.STAGE_ROWS
-        core, _, n_regions, _ = (int(v) for v in block[base + P.ROW_HEADER])
-        calls.append(f"z = fpw_stage_of(z, {base}, {core}, {n_regions});")
+    calls = [f"z = fpw_stage_of(z, {1 + k * P.STAGE_ROWS}, {core}, {n_regions});"
+             for k, (core, n_regions) in enumerate(stage_kinds(block))]
     return "FPW_STAGES " + " ".join(calls)
 
 
-_STAGE_CALL = re.compile(r"fpw_stage_of\(z, \d+, (\d+), (\d+)\)")
-
-
-def _short_map(defines):
-    """Whether a program specialized by these defines evaluates a map of
-    affine-core stages without regions (FPIs, Möbius and R-linear maps and
-    their compounds): a few dozen operations per pixel."""
-    calls = [m for d in defines if isinstance(d, str) for m in _STAGE_CALL.findall(d)]
-    return bool(calls) and all(int(core) == P.CORE_AFFINE and int(n) == 0 for core, n in calls)
+def is_short_map(block):
+    """Whether every stage of the block has the affine core and no regions
+    (FPIs, Möbius and R-linear maps and their compounds): a few dozen
+    operations per pixel, cheap to inline several times in one shader."""
+    return all(core == P.CORE_AFFINE and n_regions == 0 for core, n_regions in stage_kinds(block))
 
 
 def set_uniform(prog, name, value):
@@ -258,11 +257,11 @@ class GLWarper:
     gather : bool, optional
         Sample order 1 ('constant', 'edge', 'wrap') with one textureGather
         per channel instead of one texelFetch per tap: same values, fewer
-        texture calls. Default: where the context has GL 4.0 or
-        GL_ARB_gpu_shader5.
+        texture calls. Default: where the context has GL_ARB_gpu_shader5.
     pack_rgb : bool, optional
-        Read 3-channel pictures back through a pass that packs them into
-        RGB32UI texels (``glsl/pack_rgb.frag``): a copy instead of the
+        Read 3-channel pictures back as packed RGB32UI texels, written by
+        the warp shader itself for FPI-like maps at order <= 1 and by a
+        pass (``glsl/pack_rgb.frag``) otherwise: a copy instead of the
         driver's per-pixel conversion. Default: on little-endian hosts whose
         driver renders into RGB32UI (GL does not require it; llvmpipe and
         NVIDIA's driver do).
@@ -288,13 +287,14 @@ class GLWarper:
         self.ubo_binding = ubo_binding
         self.specialize = specialize
         if gather is None:
-            gather = self.ctx.version_code >= 400 or "GL_ARB_gpu_shader5" in self.ctx.extensions
+            gather = "GL_ARB_gpu_shader5" in self.ctx.extensions  # what the #version 330 shader requires
         self.gather = bool(gather)
         if pack_rgb is None:
             pack_rgb = sys.byteorder == "little" and _renders_rgb32ui(self.ctx)
         self.pack_rgb = bool(pack_rgb)
         self.ubo = self.ctx.buffer(reserve=MAX_ROWS * 16)
         self.compile_count = 0  # programs built so far (one per kind)
+        self.short_map = False  # set by set_map
         self._programs = {}
         self._cache = {}  # role -> (key, object): textures and framebuffers reused between calls
         self._vao_empty = {}
@@ -328,7 +328,9 @@ class GLWarper:
         uniforms, and the FPI rows of as many stages as the varying slots
         hold. Plain uniforms when even the first do not fit."""
         text, _, n = forward_uniforms(shader_source(fragment, fs_defines))
-        free = self.varying_slots - 1 - n  # a slot each, at worst; one for gl_Position
+        # a slot each, at worst, counting uniforms of inactive #if branches
+        # too (conservative); one for gl_Position
+        free = self.varying_slots - 1 - n
         if free < 0:
             return shader_source(FULLSCREEN, vs_defines), shader_source(fragment, fs_defines)
         stages = " ".join(d for d in fs_defines if isinstance(d, str) and d.startswith("FPW_STAGES "))
@@ -347,6 +349,8 @@ class GLWarper:
             raise ValueError("parameter block rows do not match its header's number of stages")
         self.ubo.write(block.tobytes())
         self.ubo.bind_to_uniform_block(self.ubo_binding)
+        #: the block just uploaded is a specialized short map (see is_short_map)
+        self.short_map = self.specialize and is_short_map(block)
         return (map_kind(block),) if self.specialize else ()
 
     def _cached(self, role, key, make):
@@ -385,8 +389,8 @@ class GLWarper:
         framebuffer stays bound; where one of these was, framebuffer 0 is
         (a deleted one left bound breaks the next framebuffer moderngl makes)."""
         ours = [self._dummy] + [obj for _, obj in self._cache.values() if isinstance(obj, moderngl.Framebuffer)]
-        bound = self.ctx.fbo
-        if bound is None or any(bound is fbo for fbo in ours):
+        bound = bound_framebuffer(self.ctx)
+        if any(bound is fbo for fbo in ours):
             bound = self.ctx.detect_framebuffer(0)
         for _, obj in self._cache.values():
             _release(obj, self._dummy)
@@ -473,6 +477,16 @@ class GLWarper:
 
     # ---- shared rendering
     def _render(self, image, output_shape, order, mode, cval, path, hardware_filter, map_kind_):
+        caller = bound_framebuffer(self.ctx)
+        if caller is self._dummy or any(caller is obj for _, obj in self._cache.values()):
+            caller = None  # ours (perhaps replaced below): nothing to give back
+        try:
+            return self._render_bound(image, output_shape, order, mode, cval, path, hardware_filter, map_kind_)
+        finally:
+            if caller is not None:
+                caller.use()  # a caller drawing into its own framebuffer keeps it bound
+
+    def _render_bound(self, image, output_shape, order, mode, cval, path, hardware_filter, map_kind_):
         h, w, c = image.shape
         oh, ow = (int(v) for v in output_shape)
         out = np.empty((oh, ow, c), dtype=image.dtype)
@@ -493,7 +507,7 @@ class GLWarper:
         # that inlines FPW_PACK_PIXELS copies of a TPS or cubic sampling
         # compiles for seconds on llvmpipe.
         packs = (c == 3 and self.pack_rgb and not tiled and not mesh and order <= 1
-                 and _short_map(map_kind_))
+                 and self.short_map)
         if tiled:
             kind += ["FPW_TILED", "FPW_ACCUMULATE"]
         elif packs:
@@ -682,10 +696,18 @@ class GLWarper:
             self.ctx.disable(moderngl.CULL_FACE)
 
 
+def bound_framebuffer(ctx):
+    """The framebuffer bound in ``ctx`` (moderngl's record), or framebuffer 0
+    when none is recorded or the recorded one has been released."""
+    fbo = ctx.fbo
+    alive = isinstance(fbo, moderngl.Framebuffer) and not isinstance(fbo.mglo, moderngl.InvalidObject)
+    return fbo if alive else ctx.detect_framebuffer(0)
+
+
 def _renders_rgb32ui(ctx):
     """Whether ``ctx`` can draw into an RGB32UI texture (an optional
     color-renderable format in GL); leaves the bound framebuffer bound."""
-    bound = ctx.fbo if ctx.fbo is not None else ctx.detect_framebuffer(0)
+    bound = bound_framebuffer(ctx)
     tex = ctx.texture((1, 1), 3, dtype="u4")
     try:
         ctx.framebuffer(color_attachments=[tex]).release()
