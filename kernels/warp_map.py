@@ -351,27 +351,18 @@ def warp_linear(
     c1 = border_index(x0 + 1, w, mode)
     r0 = border_index(y0, h, mode)
     r1 = border_index(y0 + 1, h, mode)
-    if mode == MODE_CONSTANT:
-        in_x0 = inside(x0, w, mode)
-        in_x1 = inside(x0 + 1, w, mode)
-        in_y0 = inside(y0, h, mode)
-        in_y1 = inside(y0 + 1, h, mode)
-        for c in range(img.shape[2]):
-            cv = cval[c]
-            v00 = tap(float(img[r0, c0, c]), cv, in_y0 and in_x0)
-            v01 = tap(float(img[r0, c1, c]), cv, in_y0 and in_x1)
-            v10 = tap(float(img[r1, c0, c]), cv, in_y1 and in_x0)
-            v11 = tap(float(img[r1, c1, c]), cv, in_y1 and in_x1)
-            v = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
-            store(out, y, x, c, v, top)
-    else:
-        for c in range(img.shape[2]):
-            v00 = float(img[r0, c0, c])
-            v01 = float(img[r0, c1, c])
-            v10 = float(img[r1, c0, c])
-            v11 = float(img[r1, c1, c])
-            v = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
-            store(out, y, x, c, v, top)
+    in_x0 = inside(x0, w, mode)  # all True but in constant mode
+    in_x1 = inside(x0 + 1, w, mode)
+    in_y0 = inside(y0, h, mode)
+    in_y1 = inside(y0 + 1, h, mode)
+    for c in range(img.shape[2]):
+        cv = cval[c]
+        v00 = tap(float(img[r0, c0, c]), cv, in_y0 and in_x0)
+        v01 = tap(float(img[r0, c1, c]), cv, in_y0 and in_x1)
+        v10 = tap(float(img[r1, c0, c]), cv, in_y1 and in_x0)
+        v11 = tap(float(img[r1, c1, c]), cv, in_y1 and in_x1)
+        v = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
+        store(out, y, x, c, v, top)
 
 
 @wp.kernel
