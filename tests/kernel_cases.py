@@ -4,12 +4,13 @@ Hand-built parameter-block maps (a thin-plate spline, its Newton inverse,
 regions) besides the FPI family, and the accuracy contract every backend
 meets: map_points within RTOL = 1e-5 relative of the float64 reference,
 warp_image within one level of the numpy backend on PIXEL_FRACTION of the
-pixels.
+pixels (make_image, reference, assert_images_agree, compare_warp).
 """
 
 import numpy as np
 
 from fpiwarp import FPI, Mobius, RLinear, Transform
+from fpiwarp.backends import numpy_backend
 from fpiwarp.params import CORE_TPS, CORE_TPS_INVERSE, Region, Stage, evaluate
 
 RTOL = 1e-5
@@ -115,3 +116,36 @@ MAPS = {
     "tps_inverse": lambda: tps_map().inverse,
     "compound_of_stages": lambda: Staged([tps_stage(), *sample_fpi().stages(), tps_inverse_stage()]),
 }
+
+
+# --- images ---------------------------------------------------------------------
+
+
+def make_image(shape, dtype, seed=0):
+    """Random pixels over the dtype's whole range ([0, 1) for float32)."""
+    rng = np.random.default_rng(seed)
+    if np.dtype(dtype).kind == "f":
+        return rng.random(shape).astype(dtype)
+    return rng.integers(0, np.iinfo(dtype).max, size=shape, endpoint=True).astype(dtype)
+
+
+def assert_images_agree(got, want, dtype, fraction=PIXEL_FRACTION, levels=1.0):
+    """Same dtype and shape, and ``fraction`` of the pixels within ``levels`` levels."""
+    assert got.dtype == want.dtype and got.shape == want.shape
+    diff = np.abs(got.astype(np.float64) - want.astype(np.float64))
+    ok = np.all(diff <= levels * LEVEL[dtype] * (1 + 1e-6), axis=-1)
+    assert ok.mean() >= fraction, f"only {ok.mean():.4%} of pixels within {levels} level(s)"
+
+
+def reference(img, transform, shape, order, mode, cval):
+    """The numpy backend's warp of an (H, W, C) image, and cval per channel."""
+    cv = np.broadcast_to(np.asarray(cval, dtype=np.float64), (img.shape[2],)).copy()
+    return numpy_backend.Backend().warp_image(img, transform, shape, order=order, mode=mode, cval=cv), cv
+
+
+def compare_warp(backend, img, transform, shape, order, mode, cval):
+    """``backend.warp_image`` against the reference: within one level."""
+    want, cv = reference(img, transform, shape, order, mode, cval)
+    got = backend.warp_image(img, transform, shape, order=order, mode=mode, cval=cv)
+    assert_images_agree(got, want, img.dtype.type)
+    return got, want

@@ -1,13 +1,12 @@
 """Rules every backend shares, checked on each backend that can run."""
 
+import kernel_cases
 import numpy as np
 import pytest
 
 import fpiwarp
 from fpiwarp import FPI, RLinear
 from fpiwarp.params import evaluate
-
-import kernel_cases
 
 
 @pytest.mark.parametrize("mode", ["constant", "edge", "reflect", "wrap"])
@@ -52,3 +51,30 @@ def test_map_points_with_regions(any_backend):
     far = (np.abs(pts[:, 0] - 52) > 1e-3) & (np.abs(pts[:, 1] - 6) > 1e-3)  # off the region lines
     want = evaluate(transform.params(), pts[far], np.float64)
     kernel_cases.assert_close_relative(fpiwarp.map_points(transform, pts[far], backend=any_backend), want)
+
+
+def test_integer_rounding_and_clipping(any_backend):
+    """Cubic overshoot clips to the dtype range; float32 is neither rounded nor clipped."""
+    img = np.zeros((8, 8, 1), np.float32)
+    img[:, 4:] = 1.0
+    shift = RLinear(1, 0, 0.3)
+
+    def warp(image):
+        return fpiwarp.warp_image(image, shift, (8, 8), order=3, mode="edge", cval=0, backend=any_backend)
+
+    got_f = warp(img)
+    assert got_f.min() < 0 and got_f.max() > 1
+    for dtype in (np.uint8, np.uint16):
+        top = np.iinfo(dtype).max
+        got = warp((img * top).astype(dtype))
+        assert got.min() == 0 and got.max() == top
+        want = np.clip(np.floor(got_f.astype(np.float64) * top + 0.5), 0, top)
+        assert np.abs(got.astype(np.float64) - want).max() <= 1
+
+
+def test_public_api_with_2d_image(any_backend):
+    img = kernel_cases.make_image((48, 64), np.uint8)
+    got = fpiwarp.warp_image(img, kernel_cases.sample_fpi(), backend=any_backend)
+    want = fpiwarp.warp_image(img, kernel_cases.sample_fpi())
+    assert got.shape == (48, 64)
+    kernel_cases.assert_images_agree(got[..., None], want[..., None], np.uint8)

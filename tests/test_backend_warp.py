@@ -9,31 +9,31 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from kernel_cases import (
+    DTYPES,
+    MAPS,
+    MODES,
+    ORDERS,
+    RTOL,
+    Staged,
+    assert_close_relative,
+    assert_images_agree,
+    compare_warp,
+    frame_points,
+    make_image,
+    newton_atol,
+    region_map,
+    sample_fpi,
+    tps_inverse_stage,
+    tps_map,
+    tps_stage,
+)
 from strategies import quads
 
 import fpiwarp
 from fpiwarp import FPI, Mobius, RLinear
 from fpiwarp.backends import numpy_backend
 from fpiwarp.params import evaluate
-from kernel_cases import (
-    RTOL,
-    PIXEL_FRACTION,
-    MODES,
-    ORDERS,
-    DTYPES,
-    LEVEL,
-    MAPS,
-    Staged,
-    tps_stage,
-    tps_inverse_stage,
-    tps_map,
-    region_map,
-    sample_fpi,
-    frame_points,
-    assert_close_relative,
-    newton_atol,
-)
-
 
 _backends = {}
 
@@ -162,28 +162,6 @@ def test_map_points_keeps_shape_and_accepts_odd_layouts(warp, rng):
 # --- warp_image ---------------------------------------------------------------
 
 
-def make_image(shape, dtype, seed=0):
-    rng = np.random.default_rng(seed)
-    if np.dtype(dtype).kind == "f":
-        return rng.random(shape).astype(dtype)
-    return rng.integers(0, np.iinfo(dtype).max, size=shape, endpoint=True).astype(dtype)
-
-
-def assert_images_agree(got, want, dtype):
-    assert got.dtype == want.dtype and got.shape == want.shape
-    diff = np.abs(got.astype(np.float64) - want.astype(np.float64))
-    ok = np.all(diff <= LEVEL[dtype] * (1 + 1e-6), axis=-1)
-    assert ok.mean() >= PIXEL_FRACTION, f"only {ok.mean():.4%} of pixels within one level"
-
-
-def compare_warp(warp, img, transform, shape, order, mode, cval):
-    cv = np.broadcast_to(np.asarray(cval, dtype=np.float64), (img.shape[2],)).copy()
-    want = numpy_backend.Backend().warp_image(img, transform, shape, order=order, mode=mode, cval=cv)
-    got = warp.warp_image(img, transform, shape, order=order, mode=mode, cval=cv)
-    assert_images_agree(got, want, img.dtype.type)
-    return got, want
-
-
 @pytest.mark.parametrize("dtype", DTYPES)
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("order", ORDERS)
@@ -238,29 +216,6 @@ def test_pole_inside_the_output_is_handled_like_the_reference(warp):
     img = make_image((40, 60, 3), np.uint8)
     for mode in MODES:
         compare_warp(warp, img, transform, (40, 60), 1, mode, [5, 6, 7])
-
-
-def test_integer_rounding_and_clipping(warp):
-    """Cubic overshoot clips to the dtype range; float32 is neither rounded nor clipped."""
-    img = np.zeros((8, 8, 1), np.float32)
-    img[:, 4:] = 1.0
-    shift = RLinear(1, 0, 0.3)
-    got_f = warp.warp_image(img, shift, (8, 8), order=3, mode="edge", cval=np.zeros(1))
-    assert got_f.min() < 0 and got_f.max() > 1
-    for dtype in (np.uint8, np.uint16):
-        top = np.iinfo(dtype).max
-        got = warp.warp_image((img * top).astype(dtype), shift, (8, 8), order=3, mode="edge", cval=np.zeros(1))
-        assert got.min() == 0 and got.max() == top
-        want = np.clip(np.floor(got_f.astype(np.float64) * top + 0.5), 0, top)
-        assert np.abs(got.astype(np.float64) - want).max() <= 1
-
-
-def test_public_api_with_2d_image(warp_backend):
-    img = make_image((48, 64), np.uint8)
-    got = fpiwarp.warp_image(img, sample_fpi(), backend=warp_backend)
-    want = fpiwarp.warp_image(img, sample_fpi())
-    assert got.shape == (48, 64)
-    assert_images_agree(got[..., None], want[..., None], np.uint8)
 
 
 # --- compile once, device choice ---------------------------------------------

@@ -2,18 +2,10 @@
 
 import numpy as np
 import pytest
+from kernel_cases import DTYPES, make_image
 
 import fpiwarp
 from fpiwarp import FPI, RLinear
-
-DTYPES = [np.uint8, np.uint16, np.float32]
-
-
-def make_image(shape, dtype, seed=0):
-    rng = np.random.default_rng(seed)
-    if np.dtype(dtype).kind == "f":
-        return rng.random(shape).astype(dtype)
-    return rng.integers(0, np.iinfo(dtype).max, size=shape, endpoint=True).astype(dtype)
 
 
 @pytest.mark.parametrize("dtype", DTYPES)
