@@ -186,7 +186,7 @@ def forward_uniforms(fragment_text):
     them to those outputs: ``(text, defines, n_forwarded)``. Values are
     passed exactly (flat, no interpolation).
     """
-    decls = list(dict((n, (t, n)) for t, n in _UNIFORM_DECL.findall(fragment_text)).values())  # once each (#if branches)
+    decls = list({n: (t, n) for t, n in _UNIFORM_DECL.findall(fragment_text)}.values())  # once each (#if branches)
     text = _UNIFORM_DECL.sub(lambda m: f"flat in {m[1]} {m[2]}_fpwv;\n#define {m[2]} {m[2]}_fpwv", fragment_text)
     if not decls:
         return text, (), 0
