@@ -368,10 +368,7 @@ def _run_threads(pairs, warper, overwrite, jobs, record):
     inflight = set()
     try:
         for src, dst in pairs:
-            while len(inflight) >= 2 * jobs:
-                finished, inflight = wait(inflight, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    record(fut.result())
+            _wait_below(inflight, 2 * jobs, record)
             inflight.add(pool.submit(_process, src, dst, warper, overwrite))
         for fut in _in_completion_order(inflight):
             record(fut.result())
@@ -380,6 +377,17 @@ def _run_threads(pairs, warper, overwrite, jobs, record):
         raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _wait_below(futures, limit, record):
+    """Record finished futures, taking them out of the set, until fewer than
+    ``limit`` are in flight (the set shrinks as each one is recorded, so an
+    interruption never counts a file twice)."""
+    while len(futures) >= limit:
+        finished, _ = wait(futures, return_when=FIRST_COMPLETED)
+        for fut in finished:
+            futures.discard(fut)
+            record(fut.result())
 
 
 def _finish_started(pool, futures, record):
@@ -452,10 +460,7 @@ def _run_device(pairs, warper, overwrite, jobs, record):
                 record(("failed", str(read.src), _reason(exc)))
                 continue
             del read.image
-            while len(writes) >= jobs:
-                finished, writes = wait(writes, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    record(fut.result())
+            _wait_below(writes, jobs, record)
             writes.add(pool.submit(_write, read, out, overwrite))
         for fut in _in_completion_order(writes):
             record(fut.result())

@@ -15,22 +15,24 @@ CONVEX = deformations(convex=True)
 SETTINGS = settings(max_examples=30, deadline=None)
 
 
-def outward_points(src, k, depth, n=9):
-    """Points beyond edge k (along its middle 80%), at ``depth`` × quad size."""
+def edge_and_normal(src, k):
+    """Edge k's ends a, b (complex) and its unit normal pointing out of the quad."""
     z = cplx(src)
     a, b = z[k], z[(k + 1) % 4]
     orient = np.sign(((np.conj(z) * np.roll(z, -1)).imag).sum())
-    out = -1j * (b - a) / abs(b - a) * orient
+    return a, b, -1j * (b - a) / abs(b - a) * orient
+
+
+def outward_points(src, k, depth, n=9):
+    """Points beyond edge k (along its middle 80%), at ``depth`` × quad size."""
+    a, b, out = edge_and_normal(src, k)
     t = np.linspace(0.1, 0.9, n)
     return xy(a + t * (b - a) + out * depth * size_of(src))
 
 
 def across_edge(src, k, eps, n=21):
     """Pairs of points just inside and just outside edge k."""
-    z = cplx(src)
-    a, b = z[k], z[(k + 1) % 4]
-    orient = np.sign(((np.conj(z) * np.roll(z, -1)).imag).sum())
-    out = -1j * (b - a) / abs(b - a) * orient
+    a, b, out = edge_and_normal(src, k)
     t = np.linspace(0.0, 1.0, n)
     on = a + t * (b - a)
     return xy(on - eps * out), xy(on + eps * out)
