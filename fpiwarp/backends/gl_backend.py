@@ -226,6 +226,11 @@ def set_uniform(prog, name, value):
         member.value = value
 
 
+def _pixels_per_texel(dtype):
+    """Pixels of 3 channels of ``dtype`` in one 12-byte RGB32UI texel."""
+    return 4 // np.dtype(dtype).itemsize
+
+
 def _channels_format(c):
     """Components of a renderable output attachment for c channels (RGB
     integer formats need not be renderable: use RGBA and read back 3)."""
@@ -376,6 +381,10 @@ class GLWarper:
             return self.ctx.framebuffer(color_attachments=tex)
         return self._cached(role, (size, components, dtype, cover), make)
 
+    def _owns(self, fbo):
+        """Whether ``fbo`` is one of this warper's framebuffers."""
+        return fbo is self._dummy or any(fbo is obj for _, obj in self._cache.values())
+
     def fullscreen_vao(self, prog):
         """The attribute-less vertex array that draws ``prog`` (with
         fullscreen.vert) over the viewport: ``.render(TRIANGLES, vertices=3)``."""
@@ -388,9 +397,8 @@ class GLWarper:
         """Free the GL objects made here (not the context). The caller's
         framebuffer stays bound; where one of these was, framebuffer 0 is
         (a deleted one left bound breaks the next framebuffer moderngl makes)."""
-        ours = [self._dummy] + [obj for _, obj in self._cache.values() if isinstance(obj, moderngl.Framebuffer)]
         bound = bound_framebuffer(self.ctx)
-        if any(bound is fbo for fbo in ours):
+        if self._owns(bound):
             bound = self.ctx.detect_framebuffer(0)
         for _, obj in self._cache.values():
             _release(obj, self._dummy)
@@ -478,7 +486,7 @@ class GLWarper:
     # ---- shared rendering
     def _render(self, image, output_shape, order, mode, cval, path, hardware_filter, map_kind_):
         caller = bound_framebuffer(self.ctx)
-        if caller is self._dummy or any(caller is obj for _, obj in self._cache.values()):
+        if self._owns(caller):
             caller = None  # ours (perhaps replaced below): nothing to give back
         try:
             return self._render_bound(image, output_shape, order, mode, cval, path, hardware_filter, map_kind_)
@@ -511,7 +519,7 @@ class GLWarper:
         if tiled:
             kind += ["FPW_TILED", "FPW_ACCUMULATE"]
         elif packs:
-            kind.append(f"FPW_PACK_PIXELS {4 // image.dtype.itemsize}")
+            kind.append(f"FPW_PACK_PIXELS {_pixels_per_texel(image.dtype)}")
         elif image.dtype.kind == "u":
             kind.append("FPW_OUT_INT")
         prog = self.program("mesh.vert", "mesh.frag", kind) if mesh else self.program(
@@ -594,7 +602,7 @@ class GLWarper:
         else:
             vao.render(moderngl.TRIANGLES, vertices=3)
         if c == 3 and self.pack_rgb:
-            prog = self.program(FULLSCREEN, "pack_rgb.frag", (f"FPW_PACK_PIXELS {4 // image.dtype.itemsize}",)
+            prog = self.program(FULLSCREEN, "pack_rgb.frag", (f"FPW_PACK_PIXELS {_pixels_per_texel(image.dtype)}",)
                                 + (("FPW_PACK_FLOAT",) if image.dtype.kind == "f" else ()))
             fbo.color_attachments[0].use(1)
             set_uniform(prog, "fpw_unpacked", 1)
@@ -610,7 +618,7 @@ class GLWarper:
     def _draw_packed(self, draw, full, size, dtype):
         """Run ``draw`` into the RGB32UI target that holds a (w, h) picture
         of 3 channels of ``dtype`` packed (see glsl/pack.glsl); return it."""
-        per = 4 // dtype.itemsize  # pixels per 12-byte texel
+        per = _pixels_per_texel(dtype)
         packed = self._target("packed", (-(-full[0] // per), full[1]), 3, "u4")
         packed.viewport = (0, 0, -(-size[0] // per), size[1])
         packed.use()
@@ -621,7 +629,7 @@ class GLWarper:
         """Read a packed (w, h) picture into ``dest`` (a copy: no per-pixel
         conversion by the driver); columns past w are padding."""
         w, h = size
-        per = 4 // dtype.itemsize
+        per = _pixels_per_texel(dtype)
         pw = -(-w // per)
         if pw * per == w and dest.flags.c_contiguous:
             packed.read_into(dest, viewport=(0, 0, pw, h), components=3, dtype="u4", alignment=1)
