@@ -120,7 +120,7 @@ def _cli_cases(tmp):
     for key, args in runs.items():
         out = Path(args[1] if args[0] == "demo" else args[2])
         proc = subprocess.run([sys.executable, "-m", "fpiwarp", *args], capture_output=True, text=True)
-        yield key + "/stdout", proc.stdout
+        yield key + "/stdout", proc.stdout.replace(str(tmp), "<tmp>")
         yield key + "/file", hashlib.sha256(out.read_bytes()).hexdigest() if out.exists() else None
 
 
