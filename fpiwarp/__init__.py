@@ -1,5 +1,9 @@
 """fpiwarp: quasiconformal 4-point warps (Lipman, Kim, Funkhouser 2012)."""
 
+from .resources import bind_source_packages
+
+bind_source_packages()  # kernels/ and glsl/ from this tree, never another checkout's
+
 from ._errors import BackendUnavailableError, DegenerateQuadError, InverseNotConvergedError
 from ._constrained import ConstrainedFPI
 from ._fpi import FPI

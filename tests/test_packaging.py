@@ -103,3 +103,29 @@ def test_ci_runs_the_readme_test_command():
     result = subprocess.run(["bash", "-c", extraction], cwd=ROOT, capture_output=True, text=True, check=True)
     assert result.stdout.strip() == command
     assert 'bash -euo pipefail -c "$test_command"' in ci
+
+
+def test_a_second_tree_runs_its_own_kernels(tmp_path):
+    """A copy of the checkout on PYTHONPATH loads the copy's kernels and
+    shaders, not those of the checkout an editable install points to."""
+    import shutil
+
+    copy = tmp_path / "tree"
+    for folder in ("fpiwarp", "kernels", "glsl"):
+        shutil.copytree(ROOT / folder, copy / folder, ignore=shutil.ignore_patterns("__pycache__"))
+    marker = "// a change only the copy has\n"
+    cl = copy / "kernels" / "fpiwarp.cl"
+    cl.write_text(marker + cl.read_text(encoding="utf-8"), encoding="utf-8")
+    probe = (
+        "import fpiwarp, fpiwarp.kernels, fpiwarp.glsl\n"
+        "from fpiwarp import resources\n"
+        "print(fpiwarp.__file__); print(fpiwarp.kernels.__file__); print(fpiwarp.glsl.__file__)\n"
+        "print(resources.source('kernels', 'fpiwarp.cl').splitlines()[0])\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True,
+        env={**__import__("os").environ, "PYTHONPATH": str(copy)}, cwd=tmp_path,
+    ).stdout.splitlines()
+    for line in out[:3]:
+        assert Path(line).resolve().is_relative_to(copy.resolve()), out
+    assert out[3] + "\n" == marker
