@@ -1,6 +1,6 @@
 """The "opencl" backend against the numpy reference (float32 on the device).
 
-map_points must agree with ``fpiwarp.params.evaluate`` in float64 to 1e-5
+map_points must agree with ``fpiwarp.block.evaluate`` in float64 to 1e-5
 relative to the coordinates' scale away from the pole, and warp_image with
 the numpy backend within one uint8 level (or the equivalent for uint16 and
 float32) on at least 99.8 % of the pixels, for every order, border mode,
@@ -18,7 +18,7 @@ import fpiwarp
 from fpiwarp import FPI, Mobius, RLinear
 from fpiwarp.backends import get_backend
 from fpiwarp._tps import DEVICE_RTOL
-from fpiwarp.params import CORE_TPS, CORE_TPS_INVERSE, Region, Stage, evaluate, pack
+from fpiwarp.block import CORE_TPS, CORE_TPS_INVERSE, LinearPart, MobiusPart, Region, Stage, evaluate, pack
 
 RTOL = 1e-5
 #: share of pixels that must be within one level of the reference
@@ -96,9 +96,9 @@ def tps_stage(rng, core, **kw):
     pre- and post-Möbius maps (as ConstrainedFPI builds them)."""
     n = 16
     return Stage(
-        pre=(30 + 20j, 0.001 + 0.0005j, 1 / 40),
-        lam=(1.05 + 0.05j, 0.08 - 0.03j, 0.02 + 0.01j),
-        post=(0.01 - 0.02j, 40 + 2j, 30 + 20j),
+        pre=MobiusPart(center=30 + 20j, inverse_pole=0.001 + 0.0005j, scale=1 / 40),
+        linear=LinearPart(1.05 + 0.05j, 0.08 - 0.03j, 0.02 + 0.01j),
+        post=MobiusPart(inverse_pole=0.01 - 0.02j, scale=40 + 2j, offset=30 + 20j),
         core=core,
         centers=rng.uniform(-1, 1, n) + 1j * rng.uniform(-1, 1, n),
         weights=0.01 * (rng.standard_normal(n) + 1j * rng.standard_normal(n)),
@@ -139,7 +139,7 @@ def test_map_points_regions(backend, rng):
     )
     stage = dataclasses.replace(inner, regions=regions)
     pts = grid_points(rng, -40, 110)
-    f = BlockMap([stage, Stage(lam=(1 + 0.1j, 0.05, 2 - 1j))])
+    f = BlockMap([stage, Stage(linear=LinearPart(1 + 0.1j, 0.05, 2 - 1j))])
     ref = evaluate(f.params(), pts)
     got = backend.map_points(f, pts)
     assert rel_error(got, ref).max() < RTOL
@@ -172,7 +172,7 @@ def test_map_points_matches_constrained_and_local_maps(backend, rng):
 def test_generic_program_reads_the_kind_from_the_block(backend, rng, sample_fpi):
     """Without kind defines, fw_map loops over the stages of any block."""
     cl = pytest.importorskip("pyopencl")
-    f = BlockMap([tps_stage(rng, CORE_TPS), sample_fpi.stages()[0], Stage(lam=(1j, 0.1, 3))])
+    f = BlockMap([tps_stage(rng, CORE_TPS), sample_fpi.stages()[0], Stage(linear=LinearPart(1j, 0.1, 3))])
     kern = backend.kernel("map_points", backend._point_options + (f"-DFW_LOCAL_X={backend.local_x}",))
     pts = grid_points(rng, n=backend.local_x).astype(np.float64 if backend.has_fp64 else np.float32)
     out = np.empty_like(pts)
