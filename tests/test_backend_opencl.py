@@ -18,7 +18,17 @@ import fpiwarp
 from fpiwarp import FPI, Mobius, RLinear
 from fpiwarp.backends import get_backend
 from fpiwarp._tps import DEVICE_RTOL
-from fpiwarp.block import CORE_TPS, CORE_TPS_INVERSE, LinearPart, MobiusPart, Region, Stage, evaluate, pack
+from fpiwarp.block import (
+    CORE_TPS,
+    CORE_TPS_INVERSE,
+    ROW_HEADER,
+    LinearPart,
+    MobiusPart,
+    Region,
+    Stage,
+    evaluate,
+    pack,
+)
 
 RTOL = 1e-5
 #: share of pixels that must be within one level of the reference
@@ -169,21 +179,55 @@ def test_map_points_matches_constrained_and_local_maps(backend, rng):
         assert rel_error(got[both], ref[both]).max() < DEVICE_RTOL
 
 
-def test_generic_program_reads_the_kind_from_the_block(backend, rng, sample_fpi):
-    """Without kind defines, fw_map loops over the stages of any block."""
+def run_map_points_kernel(backend, block, pts, kind_options=()):
+    """map_points' kernel on a raw block, bypassing the host's checks:
+    without kind options the generic program reads the kind from the block."""
     cl = pytest.importorskip("pyopencl")
-    f = BlockMap([tps_stage(rng, CORE_TPS), sample_fpi.stages()[0], Stage(linear=LinearPart(1j, 0.1, 3))])
-    kern = backend.kernel("map_points", backend._point_options + (f"-DFW_LOCAL_X={backend.local_x}",))
-    pts = grid_points(rng, n=backend.local_x).astype(np.float64 if backend.has_fp64 else np.float32)
+    options = tuple(kind_options) + backend._point_options + (f"-DFW_LOCAL_X={backend.local_x}",)
+    kern = backend.kernel("map_points", options)
+    pts = pts.astype(np.float64 if backend.has_fp64 else np.float32)
     out = np.empty_like(pts)
     mf = cl.mem_flags
-    block = cl.Buffer(backend.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=f.params())
+    buf = cl.Buffer(backend.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(block))
     src = cl.Buffer(backend.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=pts)
     dst = cl.Buffer(backend.context, mf.WRITE_ONLY, out.nbytes)
-    kern(backend.queue, (len(pts),), (backend.local_x,), block, src, dst, np.int32(len(pts)))
+    kern(backend.queue, (len(pts),), (backend.local_x,), buf, src, dst, np.int32(len(pts)))
     cl.enqueue_copy(backend.queue, out, dst)
     backend.queue.finish()
+    return out
+
+
+def test_generic_program_reads_the_kind_from_the_block(backend, rng, sample_fpi):
+    """Without kind defines, fw_map loops over the stages of any block."""
+    f = BlockMap([tps_stage(rng, CORE_TPS), sample_fpi.stages()[0], Stage(linear=LinearPart(1j, 0.1, 3))])
+    pts = grid_points(rng, n=backend.local_x)
+    out = run_map_points_kernel(backend, f.params(), pts)
     assert rel_error(out, evaluate(f.params(), pts)).max() < RTOL
+
+
+def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(backend, rng, sample_fpi):
+    """A core no kernel knows: map_points raises before any launch; the
+    kernel itself, given such a block anyway, returns NaN ("outside") in
+    the generic program and in one specialized to that kind, never a
+    silent Newton inverse."""
+    block = sample_fpi.params().copy()
+    block[1 + ROW_HEADER, 0] = 7
+
+    class RawBlock:
+        def params(self):
+            return block
+
+        @property
+        def inverse(self):
+            return self
+
+    pts = grid_points(rng, n=backend.local_x)
+    with pytest.raises(ValueError, match="unknown core 7"):
+        backend.map_points(RawBlock(), pts)
+    with pytest.raises(ValueError, match="unknown core 7"):
+        backend.warp_image(np.zeros((4, 4, 1), np.uint8), RawBlock(), (4, 4), order=1, mode="edge", cval=[0.0])
+    for kind in ((), ("-DFW_KIND_0=7,0,0,0",)):
+        assert np.isnan(run_map_points_kernel(backend, block, pts, kind)).all(), kind
 
 
 def test_map_points_pole_is_not_finite(backend):

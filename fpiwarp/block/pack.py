@@ -64,8 +64,13 @@ def _check_stage(stage):
         raise ValueError(f"a stage's post-Möbius is centered at 0, got {stage.post}")
 
 
-def pack(stages):
-    """Pack a list of :class:`~fpiwarp.block.Stage` into the float32 block, shape (rows, 4)."""
+def pack(stages, dtype=np.float32):
+    """Pack a list of :class:`~fpiwarp.block.Stage` into the block, shape (rows, 4).
+
+    Kernels read float32 (the default). ``dtype=np.float64`` keeps the
+    coefficients unrounded, for checking the reference's formulas apart
+    from the float32 rounding of the coefficients.
+    """
     stages = list(stages)
     if not 1 <= len(stages) <= MAX_STAGES:
         raise ValueError(f"a map packs into 1 to {MAX_STAGES} stages, this one needs {len(stages)}")
@@ -90,4 +95,4 @@ def pack(stages):
             _put(rows[ROW_REGIONS + 2 * r + 1], reg.a, reg.b)
         for j in range(n):
             _put(rows[ROW_CENTERS + j], st.centers[j], st.weights[j])
-    return block.astype(np.float32)
+    return block.astype(dtype)
