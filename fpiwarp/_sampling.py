@@ -22,7 +22,7 @@ import numpy as np
 
 # MODES (a mode's number in the kernels is its index), ORDERS and
 # COORD_LIMIT are numbers of the kernel contract: defined once, there.
-from .block.sampling_rules import COORD_LIMIT, MODES, ORDERS
+from .block.sampling_rules import COORD_LIMIT, MODES, ORDERS  # noqa: F401 - MODES, ORDERS re-exported
 
 DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
 
