@@ -23,7 +23,7 @@
  *
  * Build-time defines (all optional for the map part):
  *   FW_KIND_k = "core, n_centers, n_regions, newton_iters", one for each
- *     stage k = 0, 1, ... (at most 8): the header rows of the block's
+ *     stage k = 0, 1, ... (at most FW_MAX_STAGES): the header rows of the block's
  *     stages, its "kind". With them the stage loop unrolls and branches
  *     fold away; without them fw_map reads the kind from the block at run
  *     time. Values (coefficients) are never build options.

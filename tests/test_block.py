@@ -168,6 +168,8 @@ def test_generated_constants_are_the_contract():
         owner = B.layout if hasattr(B.layout, name) else B.sampling_rules
         assert getattr(owner, name) == value, name
     assert _sampling.COORD_LIMIT == codegen.KERNEL_CONSTANTS["COORD_LIMIT"]
+    for core, number in B.CORES.items():  # a new core reaches every kernel by name
+        assert codegen.KERNEL_CONSTANTS[f"CORE_{core.upper()}"] == number, core
     assert [_sampling.MODES.index(m) for m in _sampling.MODES] == [
         codegen.KERNEL_CONSTANTS[f"MODE_{m.upper()}"] for m in _sampling.MODES
     ]
