@@ -36,7 +36,7 @@ from ._mobius import Mobius, _matmul
 from ._quad import check_quad_pair, parallelogram_mobius, signed_area
 from ._tps import ThinPlateSpline
 from ._transform import Transform, chain
-from .params import MAX_CENTERS
+from .block import MAX_CENTERS, MobiusPart
 
 #: Adjacent constrained edges must agree on one similarity to this relative tolerance.
 SIMILARITY_RTOL = 1e-6
@@ -246,7 +246,8 @@ class ConstrainedFPI(Transform):
         """One parameter-block stage: pre-Möbius, TPS core (or its Newton
         inverse), post-Möbius; ``kw`` adds Stage fields (regions)."""
         p = self.pre
-        return self.core.stage(pre=(p.q, p.s, p.alpha), post=_centered_at_zero(self.post), **kw)
+        pre = MobiusPart(center=p.q, inverse_pole=p.s, scale=p.alpha)
+        return self.core.stage(pre=pre, post=_centered_at_zero(self.post), **kw)
 
     def stages(self):
         return [self.stage()]

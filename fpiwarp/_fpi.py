@@ -13,7 +13,7 @@ from ._linear import RLinear
 from ._points import as_xy
 from ._quad import check_quad_pair, parallelogram_mobius
 from ._transform import Transform, chain
-from .params import Stage
+from .block import LinearPart, MobiusPart, Stage
 
 #: Poles farther than size / POLE_RTOL from the quad are rounding of a pole
 #: at infinity (the map is affine to working precision).
@@ -149,16 +149,18 @@ class FPI(Transform):
         # pre: m_Z has beta = 0; post: m_W⁻¹ re-centered at 0 (its input,
         # parallelogram coordinates of unit size, lies near 0).
         post = _centered_at_zero(n)
-        return [Stage(pre=(m.q, m.s, m.alpha), lam=(a.l1, a.l2, a.l3), post=post)]
+        pre = MobiusPart(center=m.q, inverse_pole=m.s, scale=m.alpha)
+        return [Stage(pre=pre, linear=LinearPart(a.l1, a.l2, a.l3), post=post)]
 
     def __repr__(self):
         return f"FPI(src={self.src.tolist()}, dst={self.dst.tolist()})"
 
 
 def _centered_at_zero(m):
-    """(s2, k2, q2) with m(p) = q2 + k2 p / (1 - s2 p), for m.q == 0 or any q."""
+    """m as the post-Möbius part of a stage, centered at 0:
+    m(p) = offset + scale p / (1 - inverse_pole p), for m.q == 0 or any q."""
     if m.q != 0:
         from ._mobius import Mobius
 
         m = Mobius(*m.coefficients, center=0)
-    return (m.s, m.alpha, m.beta)
+    return MobiusPart(inverse_pole=m.s, scale=m.alpha, offset=m.beta)

@@ -8,6 +8,7 @@ distortion is the constant K = (|l1| + |l2|) / (|l1| - |l2|).
 import numpy as np
 
 from ._transform import Transform
+from .block import LinearPart, Stage
 
 
 class RLinear(Transform):
@@ -75,9 +76,7 @@ class RLinear(Transform):
         return RLinear(np.conj(self.l1), np.conj(self.l2), np.conj(self.l3))
 
     def stages(self):
-        from .params import Stage
-
-        return [Stage(lam=(self.l1, self.l2, self.l3))]
+        return [Stage(linear=LinearPart(self.l1, self.l2, self.l3))]
 
     def __repr__(self):
         return f"RLinear({self.l1!r}, {self.l2!r}, {self.l3!r})"

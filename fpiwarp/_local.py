@@ -49,7 +49,7 @@ import numpy as np
 from ._constrained import ConstrainedFPI, as_mobius, edge_similarity, shared_similarity
 from ._quad import signed_area
 from ._transform import Transform
-from .params import Region
+from .block import Region
 
 
 def _check_line_bounds(q, k, outward, name):

@@ -10,6 +10,7 @@ similarity), and the inverse has the same form with
 import numpy as np
 
 from ._transform import Transform
+from .block import LinearPart, MobiusPart, Stage
 
 
 def _complex(value, name):
@@ -128,9 +129,8 @@ class Mobius(Transform):
         return Mobius.centered(*(np.conj(v) for v in (self.q, self.s, self.alpha, self.beta)))
 
     def stages(self):
-        from .params import Stage
-
-        return [Stage(pre=(self.q, self.s, self.alpha), lam=(1, 0, self.beta))]
+        pre = MobiusPart(center=self.q, inverse_pole=self.s, scale=self.alpha)
+        return [Stage(pre=pre, linear=LinearPart(1, 0, self.beta))]
 
     def __repr__(self):
         return f"Mobius.centered(q={self.q!r}, s={self.s!r}, alpha={self.alpha!r}, beta={self.beta!r})"

@@ -20,11 +20,11 @@ Conventions shared by every backend:
 
 import numpy as np
 
-MODES = ("constant", "edge", "reflect", "wrap")
-ORDERS = (0, 1, 3)
+# MODES (a mode's number in the kernels is its index), ORDERS and
+# COORD_LIMIT are numbers of the kernel contract: defined once, there.
+from .block.sampling_rules import COORD_LIMIT, MODES, ORDERS  # noqa: F401 - MODES, ORDERS re-exported
+
 DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
-#: Source positions beyond this many pixels count as "outside" (cval).
-COORD_LIMIT = float(2**24)
 
 
 def border_index(i, n, mode):

@@ -19,7 +19,7 @@ import numpy as np
 from ._errors import InverseNotConvergedError
 from ._linear import RLinear
 from ._transform import Transform, unsolved_are_nan
-from .params import CORE_TPS, CORE_TPS_INVERSE, MAX_CENTERS, Stage
+from .block import CORE_TPS, CORE_TPS_INVERSE, MAX_CENTERS, LinearPart, Stage
 
 #: Points evaluated per chunk (bounds the (chunk, centers) work arrays,
 #: small enough to stay in cache).
@@ -213,7 +213,7 @@ class ThinPlateSpline(Transform):
 
     def stage(self, **kw):
         """The parameter-block stage of this spline (extra Stage fields in ``kw``)."""
-        return Stage(core=CORE_TPS, lam=self.lam, centers=self.centers, weights=self.weights, **kw)
+        return Stage(core=CORE_TPS, linear=LinearPart(*self.lam), centers=self.centers, weights=self.weights, **kw)
 
     def stages(self):
         return [self.stage()]
@@ -317,7 +317,7 @@ class InverseThinPlateSpline(Transform):
         t = self.tps
         return Stage(
             core=CORE_TPS_INVERSE,
-            lam=t.lam,
+            linear=LinearPart(*t.lam),
             centers=t.centers,
             weights=t.weights,
             newton_iters=DEVICE_ITERS,

@@ -15,6 +15,7 @@ import contextvars
 import numpy as np
 
 from ._points import as_complex, as_xy
+from .block import pack
 
 _UNSOLVED_AS_NAN = contextvars.ContextVar("fpiwarp_unsolved_as_nan", default=False)
 
@@ -74,7 +75,7 @@ class Transform:
     Subclasses implement ``_wirtinger(z) -> (w, f_z, f_zbar)`` on complex
     arrays, ``_map(z)`` (value only, for speed), ``inverse`` and
     ``stages()``, the list of parameter-block stages that the kernels
-    evaluate (see :mod:`fpiwarp.params`).
+    evaluate (see :mod:`fpiwarp.block`).
     """
 
     def __call__(self, points):
@@ -99,8 +100,6 @@ class Transform:
 
     def params(self):
         """The flat float32 parameter block every backend reads."""
-        from .params import pack
-
         return pack(self.stages())
 
     def jacobian(self, points):

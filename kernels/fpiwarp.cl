@@ -1,7 +1,8 @@
 /* fpiwarp.cl: the OpenCL kernels of fpiwarp's "opencl" backend.
  *
- * All math lives in fpiwarp_map.h (mirroring fpiwarp/params.py and
- * fpiwarp/_sampling.py). The parameter block is a __constant float4
+ * All math lives in fpiwarp_map.h (mirroring fpiwarp/block/reference.py
+ * and fpiwarp/_sampling.py); the host prepends the block contract's
+ * #defines (fpiwarp/block/codegen.py). The parameter block is a __constant float4
  * buffer; its values never change the program. A program is built once
  * per kind of map (FW_KIND_k defines, optional) and, for warp_image, kind
  * of sampling (FW_T, FW_C, FW_INT, FW_TOP, FW_ORDER, FW_MODE, FW_VN): see

@@ -4,7 +4,7 @@ Everything here is module-level ``@wp.func`` / ``@wp.kernel`` code, so Warp
 hashes and compiles this module once (per device) and caches the binary on
 disk; the map's values travel in the parameter block, never in the source.
 
-The functions mirror :func:`fpiwarp.params.evaluate` line by line (regions,
+The functions mirror :func:`fpiwarp.block.reference.evaluate` line by line (regions,
 pre-Möbius, core, post-Möbius, stage after stage) and the sampling of
 :mod:`fpiwarp._sampling` (orders 0/1/3, border modes, non-finite positions
 give ``cval``, integer outputs rounded with floor(v + 0.5) and clipped).
@@ -21,31 +21,32 @@ from typing import Any
 
 import warp as wp
 
-from fpiwarp import params as _p
+from fpiwarp.block.codegen import KERNEL_CONSTANTS as CONTRACT
 
 # Forward evaluation only: no adjoint code, which halves the compile time.
 wp.set_module_options({"enable_backward": False})
 
-STAGE_ROWS = wp.constant(_p.STAGE_ROWS)
-ROW_HEADER = wp.constant(_p.ROW_HEADER)
-ROW_PRE = wp.constant(_p.ROW_PRE)
-ROW_SCALE = wp.constant(_p.ROW_SCALE)
-ROW_POST = wp.constant(_p.ROW_POST)
-ROW_L12 = wp.constant(_p.ROW_L12)
-ROW_L3 = wp.constant(_p.ROW_L3)
-ROW_MU12 = wp.constant(_p.ROW_MU12)
-ROW_MU3 = wp.constant(_p.ROW_MU3)
-ROW_REGIONS = wp.constant(_p.ROW_REGIONS)
-ROW_CENTERS = wp.constant(_p.ROW_CENTERS)
-CORE_AFFINE = wp.constant(_p.CORE_AFFINE)
-CORE_TPS = wp.constant(_p.CORE_TPS)
-
-#: Border modes by index, in the order of :data:`fpiwarp._sampling.MODES`.
-MODE_CONSTANT = wp.constant(0)
-MODE_EDGE = wp.constant(1)
-MODE_REFLECT = wp.constant(2)
-MODE_WRAP = wp.constant(3)
-COORD_LIMIT = wp.constant(float(2**24))  # _sampling.COORD_LIMIT
+# The block contract's numbers, bound by name from the one table of
+# fpiwarp.block.codegen (the kernels below read them as Warp constants).
+STAGE_ROWS = wp.constant(CONTRACT["STAGE_ROWS"])
+ROW_HEADER = wp.constant(CONTRACT["ROW_HEADER"])
+ROW_PRE = wp.constant(CONTRACT["ROW_PRE"])
+ROW_SCALE = wp.constant(CONTRACT["ROW_SCALE"])
+ROW_POST = wp.constant(CONTRACT["ROW_POST"])
+ROW_L12 = wp.constant(CONTRACT["ROW_L12"])
+ROW_L3 = wp.constant(CONTRACT["ROW_L3"])
+ROW_MU12 = wp.constant(CONTRACT["ROW_MU12"])
+ROW_MU3 = wp.constant(CONTRACT["ROW_MU3"])
+ROW_REGIONS = wp.constant(CONTRACT["ROW_REGIONS"])
+ROW_CENTERS = wp.constant(CONTRACT["ROW_CENTERS"])
+CORE_AFFINE = wp.constant(CONTRACT["CORE_AFFINE"])
+CORE_TPS = wp.constant(CONTRACT["CORE_TPS"])
+CORE_TPS_INVERSE = wp.constant(CONTRACT["CORE_TPS_INVERSE"])
+MODE_CONSTANT = wp.constant(CONTRACT["MODE_CONSTANT"])
+MODE_EDGE = wp.constant(CONTRACT["MODE_EDGE"])
+MODE_REFLECT = wp.constant(CONTRACT["MODE_REFLECT"])
+MODE_WRAP = wp.constant(CONTRACT["MODE_WRAP"])
+COORD_LIMIT = wp.constant(CONTRACT["COORD_LIMIT"])
 
 
 # Accumulators start as ``float(0.0)``: Warp treats a bare literal as a
@@ -87,7 +88,7 @@ def abs2(a: wp.vec2):
     return a[0] * a[0] + a[1] * a[1]
 
 
-# --- the parameter block (mirrors fpiwarp.params) ---------------------------
+# --- the parameter block (mirrors fpiwarp.block.reference) ------------------
 
 
 @wp.func
@@ -182,8 +183,10 @@ def evaluate_stage(blk: wp.array(dtype=wp.vec4), s0: int, z: wp.vec2):
         p = cmul(lo(blk[s0 + ROW_L12]), p) + cmul(hi(blk[s0 + ROW_L12]), conj(p)) + lo(blk[s0 + ROW_L3])
     elif core == CORE_TPS:
         p = tps_value(blk, s0, n, p)
-    else:
+    elif core == CORE_TPS_INVERSE:
         p = tps_newton(blk, s0, n, iters, p)
+    else:  # a core this kernel does not know: outside (the host refuses it first)
+        return wp.vec2(wp.nan, wp.nan)
     post = blk[s0 + ROW_POST]
     return hi(post) + cdiv(cmul(hi(blk[s0 + ROW_SCALE]), p), wp.vec2(1.0, 0.0) - cmul(lo(post), p))
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from fpiwarp import FPI, Mobius, RLinear, Transform
 from fpiwarp.backends import numpy_backend
-from fpiwarp.params import CORE_TPS, CORE_TPS_INVERSE, Region, Stage, evaluate
+from fpiwarp.block import CORE_TPS, CORE_TPS_INVERSE, LinearPart, Region, Stage, evaluate
 
 RTOL = 1e-5
 PIXEL_FRACTION = 0.998
@@ -44,16 +44,16 @@ class Staged(Transform):
 # A mild thin-plate spline on a 64×48 frame, its Newton inverse, and regions.
 _CENTERS = np.array([10 + 8j, 50 + 10j, 30 + 25j, 12 + 40j, 55 + 42j, 32 + 5j])
 _WEIGHTS = np.array([3e-4 + 1e-4j, -2e-4 + 2e-4j, 1e-4 - 3e-4j, -3e-4 - 1e-4j, 2e-4, 1e-4j])
-_LAM = (1.02 + 0.01j, 0.03 - 0.02j, 1.5 - 0.5j)
+_LINEAR = LinearPart(1.02 + 0.01j, 0.03 - 0.02j, 1.5 - 0.5j)
 
 
 def tps_stage():
-    return Stage(lam=_LAM, core=CORE_TPS, centers=_CENTERS, weights=_WEIGHTS)
+    return Stage(linear=_LINEAR, core=CORE_TPS, centers=_CENTERS, weights=_WEIGHTS)
 
 
 def tps_inverse_stage(iters=20, tol=1e-4):
     return Stage(
-        lam=_LAM, core=CORE_TPS_INVERSE, centers=_CENTERS, weights=_WEIGHTS, newton_iters=iters, newton_tol=tol
+        linear=_LINEAR, core=CORE_TPS_INVERSE, centers=_CENTERS, weights=_WEIGHTS, newton_iters=iters, newton_tol=tol
     )
 
 
@@ -64,13 +64,13 @@ _REGIONS = (
 
 
 def region_stage():
-    return Stage(lam=(1.01 + 0.02j, 0.02j, 0.5 + 0.25j), regions=_REGIONS)
+    return Stage(linear=LinearPart(1.01 + 0.02j, 0.02j, 0.5 + 0.25j), regions=_REGIONS)
 
 
 def region_inverse_stage():
     inv = RLinear(1.01 + 0.02j, 0.02j, 0.5 + 0.25j).inverse
     regions = tuple(Region(r.a * r.origin + r.b, r.a * r.normal, 1 / r.a, -r.b / r.a) for r in _REGIONS)
-    return Stage(lam=(inv.l1, inv.l2, inv.l3), regions=regions)
+    return Stage(linear=LinearPart(inv.l1, inv.l2, inv.l3), regions=regions)
 
 
 def tps_map():

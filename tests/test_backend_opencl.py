@@ -1,6 +1,6 @@
 """The "opencl" backend against the numpy reference (float32 on the device).
 
-map_points must agree with ``fpiwarp.params.evaluate`` in float64 to 1e-5
+map_points must agree with ``fpiwarp.block.evaluate`` in float64 to 1e-5
 relative to the coordinates' scale away from the pole, and warp_image with
 the numpy backend within one uint8 level (or the equivalent for uint16 and
 float32) on at least 99.8 % of the pixels, for every order, border mode,
@@ -18,7 +18,17 @@ import fpiwarp
 from fpiwarp import FPI, Mobius, RLinear
 from fpiwarp.backends import get_backend
 from fpiwarp._tps import DEVICE_RTOL
-from fpiwarp.params import CORE_TPS, CORE_TPS_INVERSE, Region, Stage, evaluate, pack
+from fpiwarp.block import (
+    CORE_TPS,
+    CORE_TPS_INVERSE,
+    ROW_HEADER,
+    LinearPart,
+    MobiusPart,
+    Region,
+    Stage,
+    evaluate,
+    pack,
+)
 
 RTOL = 1e-5
 #: share of pixels that must be within one level of the reference
@@ -96,9 +106,9 @@ def tps_stage(rng, core, **kw):
     pre- and post-Möbius maps (as ConstrainedFPI builds them)."""
     n = 16
     return Stage(
-        pre=(30 + 20j, 0.001 + 0.0005j, 1 / 40),
-        lam=(1.05 + 0.05j, 0.08 - 0.03j, 0.02 + 0.01j),
-        post=(0.01 - 0.02j, 40 + 2j, 30 + 20j),
+        pre=MobiusPart(center=30 + 20j, inverse_pole=0.001 + 0.0005j, scale=1 / 40),
+        linear=LinearPart(1.05 + 0.05j, 0.08 - 0.03j, 0.02 + 0.01j),
+        post=MobiusPart(inverse_pole=0.01 - 0.02j, scale=40 + 2j, offset=30 + 20j),
         core=core,
         centers=rng.uniform(-1, 1, n) + 1j * rng.uniform(-1, 1, n),
         weights=0.01 * (rng.standard_normal(n) + 1j * rng.standard_normal(n)),
@@ -139,7 +149,7 @@ def test_map_points_regions(backend, rng):
     )
     stage = dataclasses.replace(inner, regions=regions)
     pts = grid_points(rng, -40, 110)
-    f = BlockMap([stage, Stage(lam=(1 + 0.1j, 0.05, 2 - 1j))])
+    f = BlockMap([stage, Stage(linear=LinearPart(1 + 0.1j, 0.05, 2 - 1j))])
     ref = evaluate(f.params(), pts)
     got = backend.map_points(f, pts)
     assert rel_error(got, ref).max() < RTOL
@@ -169,21 +179,55 @@ def test_map_points_matches_constrained_and_local_maps(backend, rng):
         assert rel_error(got[both], ref[both]).max() < DEVICE_RTOL
 
 
-def test_generic_program_reads_the_kind_from_the_block(backend, rng, sample_fpi):
-    """Without kind defines, fw_map loops over the stages of any block."""
+def run_map_points_kernel(backend, block, pts, kind_options=()):
+    """map_points' kernel on a raw block, bypassing the host's checks:
+    without kind options the generic program reads the kind from the block."""
     cl = pytest.importorskip("pyopencl")
-    f = BlockMap([tps_stage(rng, CORE_TPS), sample_fpi.stages()[0], Stage(lam=(1j, 0.1, 3))])
-    kern = backend.kernel("map_points", backend._point_options + (f"-DFW_LOCAL_X={backend.local_x}",))
-    pts = grid_points(rng, n=backend.local_x).astype(np.float64 if backend.has_fp64 else np.float32)
+    options = tuple(kind_options) + backend._point_options + (f"-DFW_LOCAL_X={backend.local_x}",)
+    kern = backend.kernel("map_points", options)
+    pts = pts.astype(np.float64 if backend.has_fp64 else np.float32)
     out = np.empty_like(pts)
     mf = cl.mem_flags
-    block = cl.Buffer(backend.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=f.params())
+    buf = cl.Buffer(backend.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(block))
     src = cl.Buffer(backend.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=pts)
     dst = cl.Buffer(backend.context, mf.WRITE_ONLY, out.nbytes)
-    kern(backend.queue, (len(pts),), (backend.local_x,), block, src, dst, np.int32(len(pts)))
+    kern(backend.queue, (len(pts),), (backend.local_x,), buf, src, dst, np.int32(len(pts)))
     cl.enqueue_copy(backend.queue, out, dst)
     backend.queue.finish()
+    return out
+
+
+def test_generic_program_reads_the_kind_from_the_block(backend, rng, sample_fpi):
+    """Without kind defines, fw_map loops over the stages of any block."""
+    f = BlockMap([tps_stage(rng, CORE_TPS), sample_fpi.stages()[0], Stage(linear=LinearPart(1j, 0.1, 3))])
+    pts = grid_points(rng, n=backend.local_x)
+    out = run_map_points_kernel(backend, f.params(), pts)
     assert rel_error(out, evaluate(f.params(), pts)).max() < RTOL
+
+
+def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(backend, rng, sample_fpi):
+    """A core no kernel knows: map_points raises before any launch; the
+    kernel itself, given such a block anyway, returns NaN ("outside") in
+    the generic program and in one specialized to that kind, never a
+    silent Newton inverse."""
+    block = sample_fpi.params().copy()
+    block[1 + ROW_HEADER, 0] = 7
+
+    class RawBlock:
+        def params(self):
+            return block
+
+        @property
+        def inverse(self):
+            return self
+
+    pts = grid_points(rng, n=backend.local_x)
+    with pytest.raises(ValueError, match="unknown core 7"):
+        backend.map_points(RawBlock(), pts)
+    with pytest.raises(ValueError, match="unknown core 7"):
+        backend.warp_image(np.zeros((4, 4, 1), np.uint8), RawBlock(), (4, 4), order=1, mode="edge", cval=[0.0])
+    for kind in ((), ("-DFW_KIND_0=7,0,0,0",)):
+        assert np.isnan(run_map_points_kernel(backend, block, pts, kind)).all(), kind
 
 
 def test_map_points_pole_is_not_finite(backend):

@@ -33,7 +33,7 @@ from strategies import quads
 import fpiwarp
 from fpiwarp import FPI, Mobius, RLinear
 from fpiwarp.backends import numpy_backend
-from fpiwarp.params import evaluate
+from fpiwarp.block import evaluate
 
 _backends = {}
 
@@ -238,6 +238,32 @@ def test_new_values_do_not_recompile(warp, rng):
                 img = make_image((12, 9, 2), dtype)
                 warp.warp_image(img, transform, (7, 11), order=order, mode="wrap", cval=np.zeros(2))
     assert module.execs == loaded
+
+
+def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(warp, rng):
+    """A core no kernel knows: map_points raises before any launch; the
+    kernel itself, given such a block anyway, returns NaN ("outside"),
+    never a silent Newton inverse."""
+    import warp as wp
+
+    from fpiwarp.block import ROW_HEADER
+    from fpiwarp.kernels import warp_map
+
+    block = sample_fpi().params().copy()
+    block[1 + ROW_HEADER, 0] = 7
+    pts = frame_points(rng, n=256)
+
+    class RawBlock:
+        def params(self):
+            return block
+
+    with pytest.raises(ValueError, match="unknown core 7"):
+        warp.map_points(RawBlock(), pts)
+    blk = wp.array(block, dtype=wp.vec4, device=warp.device)
+    src = wp.array(pts, dtype=wp.vec2d, device=warp.device)
+    out = wp.zeros(len(pts), dtype=wp.vec2d, device=warp.device)
+    wp.launch(warp_map.map_points_kernel, dim=len(pts), inputs=[blk, src, out, 0], device=warp.device)
+    assert np.isnan(out.numpy()).all()
 
 
 def test_unknown_device_is_a_clear_error(warp_backend, monkeypatch):

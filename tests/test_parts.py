@@ -125,19 +125,3 @@ def test_mobius_centered_on_its_pole_recenters(center):
 def test_mobius_from_points_names_coincident_points():
     with pytest.raises(ValueError, match="distinct"):
         Mobius.from_points([[0, 0], [0, 0], [1, 1]], [[0, 0], [1, 0], [0, 1]])
-
-
-def test_opencl_header_states_the_block_layout_of_params():
-    """kernels/fpiwarp_map.h spells the layout out as #defines: they must be
-    the constants of fpiwarp.params (GLSL and Warp take them from there)."""
-    import re
-
-    from fpiwarp import params
-    from fpiwarp.resources import source
-
-    defines = dict(re.findall(r"^#define FW_(\w+) (\d+)\s*$", source("kernels", "fpiwarp_map.h"), re.M))
-    names = ["STAGE_ROWS", "ROW_HEADER", "ROW_PRE", "ROW_SCALE", "ROW_POST", "ROW_L12", "ROW_L3",
-             "ROW_MU12", "ROW_MU3", "ROW_REGIONS", "ROW_CENTERS", "CORE_AFFINE", "CORE_TPS",
-             "CORE_TPS_INVERSE", "MAX_REGIONS"]
-    for name in names:
-        assert int(defines[name]) == getattr(params, name), name

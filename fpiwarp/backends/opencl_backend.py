@@ -2,11 +2,13 @@
 
 pyopencl runs ``kernels/fpiwarp.cl`` (math in ``kernels/fpiwarp_map.h``)
 on one OpenCL device: PoCL on a CPU, or any OpenCL GPU. The map's
-parameter block (:mod:`fpiwarp.params`) goes to the device as a
+parameter block (:mod:`fpiwarp.block`) goes to the device as a
 ``__constant float4`` buffer. Programs are built once per context and set
 of build options and cached, never per set of map values: the options name
 the kind of map (each stage's header row: core, number of TPS centers,
-regions, Newton steps, see :func:`kind_options`) and, for images, the kind
+regions, Newton steps, see :func:`kind_options`; a block no kernel knows is
+refused by :func:`fpiwarp.block.describe` before anything is launched) and,
+for images, the kind
 of sampling (dtype, channels, order, border mode). Knowing the kind at
 build time unrolls the stage loop, which lets PoCL vectorize the map
 across work-items; on CPUs the sampling is written in 8-lane vector types
@@ -31,11 +33,12 @@ import threading
 import numpy as np
 
 from .. import resources
-from ..params import STAGE_ROWS
+from ..block import describe
+from ..block.codegen import opencl_preamble
+from ..block.sampling_rules import MODES
 
 ENV_DEVICE = "FPIWARP_OPENCL_DEVICE"
 _SOURCE, _HEADER = "fpiwarp.cl", "fpiwarp_map.h"
-_MODES = {"constant": 0, "edge": 1, "reflect": 2, "wrap": 3}
 _CTYPES = {np.dtype(np.uint8): "uchar", np.dtype(np.uint16): "ushort", np.dtype(np.float32): "float"}
 #: Work-group width (pixels of one row, or points) on CPUs and on other
 #: devices, capped by the device's limit. On PoCL every work-group costs a
@@ -111,21 +114,23 @@ def probe():
 
 
 def program_source():
-    """fpiwarp.cl with fpiwarp_map.h pasted in place of its #include, so
-    the program builds the same from a source tree and from a wheel."""
+    """The block contract's generated #defines, then fpiwarp.cl with
+    fpiwarp_map.h pasted in place of its #include, so the program builds
+    the same from a source tree and from a wheel."""
     text = resources.source("kernels", _SOURCE)
     include = f'#include "{_HEADER}"'
     if include not in text:
         raise RuntimeError(f"{_SOURCE} no longer includes {_HEADER}")
-    return text.replace(include, resources.source("kernels", _HEADER), 1)
+    return opencl_preamble() + text.replace(include, resources.source("kernels", _HEADER), 1)
 
 
-def kind_options(block):
-    """Build options naming the kind of map: each stage's header row
-    (core, n_centers, n_regions, newton_iters). Values never enter them."""
-    n = int(block[0, 0])
-    heads = block[1 :: STAGE_ROWS][:n]
-    return tuple(f"-DFW_KIND_{k}={','.join(str(int(v)) for v in head)}" for k, head in enumerate(heads))
+def kind_options(kind):
+    """Build options naming the kind of map (a :class:`fpiwarp.block.BlockKind`):
+    each stage's header row (core, n_centers, n_regions, newton_iters).
+    Values never enter them."""
+    return tuple(
+        f"-DFW_KIND_{k}={','.join(str(v) for v in stage.header)}" for k, stage in enumerate(kind.stages)
+    )
 
 
 def sampling_options(dtype, channels, order, mode):
@@ -138,7 +143,7 @@ def sampling_options(dtype, channels, order, mode):
         f"-DFW_INT={int(dtype.kind == 'u')}",
         f"-DFW_TOP={top}",
         f"-DFW_ORDER={int(order)}",
-        f"-DFW_MODE={_MODES[mode]}",
+        f"-DFW_MODE={MODES.index(mode)}",
     )
 
 
@@ -207,11 +212,13 @@ class Backend:
         return buf
 
     def _upload_block(self, transform):
-        """Upload the block of ``transform``; return it and its kind options."""
+        """Upload the block of ``transform``; return it and its kind options.
+        A block no kernel knows raises ValueError before the upload."""
         block = np.ascontiguousarray(transform.params(), dtype=np.float32)
+        options = kind_options(describe(block))
         buf = self._buffer("block", block.nbytes)
         self._cl.enqueue_copy(self.queue, buf, block)
-        return buf, kind_options(block)
+        return buf, options
 
     # -- the backend interface ---------------------------------------------
     def map_points(self, transform, points):

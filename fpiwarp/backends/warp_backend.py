@@ -31,8 +31,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from .._sampling import MODES
-from ..params import MAX_STAGES, STAGE_ROWS
+from ..block import MAX_ROWS, describe
+from ..block.sampling_rules import MODES
 
 #: Environment variable naming the Warp device, e.g. "cpu" or "cuda:0".
 DEVICE_ENV = "FPIWARP_WARP_DEVICE"
@@ -41,7 +41,6 @@ THREADS_ENV = "FPIWARP_WARP_THREADS"
 #: Below this many work items a CPU call is one launch on the calling thread.
 MIN_ITEMS_PER_THREAD = 1 << 16
 
-_MAX_ROWS = 1 + MAX_STAGES * STAGE_ROWS
 _TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
 _init_lock = threading.Lock()
 
@@ -167,7 +166,7 @@ class Backend:
         self._pool = ThreadPoolExecutor(self.threads, "fpiwarp-warp") if self.threads > 1 else None
         if self._pool is not None:  # its idle threads end with the backend object
             weakref.finalize(self, self._pool.shutdown, wait=False)
-        self._block = wp.zeros(_MAX_ROWS, dtype=wp.vec4, device=self.device)
+        self._block = wp.zeros(MAX_ROWS, dtype=wp.vec4, device=self.device)
         self._block_staging = self._block if self._on_cpu else wp.zeros_like(self._block, device="cpu", pinned=True)
         self._block_host = self._block_staging.numpy()  # a (rows, 4) float32 view of host memory
         self._buffers = {}
@@ -196,8 +195,10 @@ class Backend:
 
     def _upload_block(self, transform):
         """Write the map's parameter block into the persistent device buffer
-        (on CUDA through a pinned host copy of it)."""
+        (on CUDA through a pinned host copy of it). A block no kernel knows
+        raises ValueError before the upload (:func:`fpiwarp.block.describe`)."""
         block = transform.params()
+        describe(block)
         rows = block.shape[0]
         self._block_host[:rows] = block
         if not self._on_cpu:

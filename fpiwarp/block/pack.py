@@ -1,0 +1,98 @@
+"""Packing stages into the float32 parameter block (layout in
+:mod:`fpiwarp.block.layout`), solved in float64 and rounded once."""
+
+import numpy as np
+
+from .layout import (
+    CORES,
+    LAYOUT_VERSION,
+    MAX_CENTERS,
+    MAX_REGIONS,
+    MAX_STAGES,
+    ROW_CENTERS,
+    ROW_HEADER,
+    ROW_L3,
+    ROW_L12,
+    ROW_MU3,
+    ROW_MU12,
+    ROW_POST,
+    ROW_PRE,
+    ROW_REGIONS,
+    ROW_SCALE,
+    STAGE_ROWS,
+)
+from .stage import LinearPart
+
+
+def rlinear_inverse(linear):
+    """The inverse of an R-linear part, the seed of the device Newton.
+
+    The same formula as :attr:`fpiwarp.RLinear.inverse`, in plain complex
+    arithmetic (the block layer imports no map class). Raises ValueError
+    for a singular or non-finite part, as RLinear does.
+    """
+    l1, l2, l3 = complex(linear.l1), complex(linear.l2), complex(linear.l3)
+    if not all(np.isfinite([l1.real, l1.imag, l2.real, l2.imag, l3.real, l3.imag])):
+        raise ValueError("R-linear coefficients must be finite")
+    if abs(abs(l1) - abs(l2)) <= 1e-14 * (abs(l1) + abs(l2)):
+        raise ValueError("singular R-linear map: |l1| == |l2|")
+    det = abs(l1) ** 2 - abs(l2) ** 2
+    m1 = np.conj(l1) / det
+    m2 = -l2 / det
+    return LinearPart(complex(m1), complex(m2), complex(-(m1 * l3 + m2 * np.conj(l3))))
+
+
+def _put(row, *values):
+    """Write complex values into a row as (re, im) pairs."""
+    flat = []
+    for v in values:
+        v = complex(v)
+        flat += [v.real, v.imag]
+    row[: len(flat)] = flat
+
+
+def _check_stage(stage):
+    if stage.core not in CORES.values():
+        raise ValueError(f"unknown core {stage.core!r}; the kernels know {CORES}")
+    if len(stage.centers) > MAX_CENTERS:
+        raise ValueError(f"at most {MAX_CENTERS} TPS centers, got {len(stage.centers)}")
+    if len(stage.regions) > MAX_REGIONS:
+        raise ValueError(f"at most {MAX_REGIONS} regions, got {len(stage.regions)}")
+    if stage.pre.offset != 0:
+        raise ValueError(f"a stage's pre-Möbius has no offset (the block has no row for it), got {stage.pre}")
+    if stage.post.center != 0:
+        raise ValueError(f"a stage's post-Möbius is centered at 0, got {stage.post}")
+
+
+def pack(stages, dtype=np.float32):
+    """Pack a list of :class:`~fpiwarp.block.Stage` into the block, shape (rows, 4).
+
+    Kernels read float32 (the default). ``dtype=np.float64`` keeps the
+    coefficients unrounded, for checking the reference's formulas apart
+    from the float32 rounding of the coefficients.
+    """
+    stages = list(stages)
+    if not 1 <= len(stages) <= MAX_STAGES:
+        raise ValueError(f"a map packs into 1 to {MAX_STAGES} stages, this one needs {len(stages)}")
+    block = np.zeros((1 + len(stages) * STAGE_ROWS, 4), dtype=np.float64)
+    block[0, :2] = (len(stages), LAYOUT_VERSION)
+    for k, st in enumerate(stages):
+        _check_stage(st)
+        rows = block[1 + k * STAGE_ROWS : 1 + (k + 1) * STAGE_ROWS]
+        n = len(st.centers)
+        rows[ROW_HEADER] = (st.core, n, len(st.regions), st.newton_iters)
+        _put(rows[ROW_PRE], st.pre.center, st.pre.inverse_pole)
+        _put(rows[ROW_SCALE], st.pre.scale, st.post.scale)
+        _put(rows[ROW_POST], st.post.inverse_pole, st.post.offset)
+        _put(rows[ROW_L12], st.linear.l1, st.linear.l2)
+        _put(rows[ROW_L3], st.linear.l3)
+        rows[ROW_L3, 2] = st.newton_tol
+        mu = rlinear_inverse(st.linear)  # the Newton seed
+        _put(rows[ROW_MU12], mu.l1, mu.l2)
+        _put(rows[ROW_MU3], mu.l3)
+        for r, reg in enumerate(st.regions):
+            _put(rows[ROW_REGIONS + 2 * r], reg.origin, reg.normal)
+            _put(rows[ROW_REGIONS + 2 * r + 1], reg.a, reg.b)
+        for j in range(n):
+            _put(rows[ROW_CENTERS + j], st.centers[j], st.weights[j])
+    return block.astype(dtype)
