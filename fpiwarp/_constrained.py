@@ -30,6 +30,7 @@ each offset point.
 
 import numpy as np
 
+from ._errors import ArgumentTypeError, ConstraintError
 from ._fpi import _centered_at_zero
 from ._linear import RLinear
 from ._mobius import Mobius, _matmul
@@ -48,9 +49,9 @@ def normalize_edges(edges):
     try:
         i, j = (int(e) for e in edges)
     except (TypeError, ValueError):
-        raise ValueError(f"edges must be two edge indices in 0..3, got {edges!r}") from None
+        raise ConstraintError(f"edges must be two edge indices in 0..3, got {edges!r}") from None
     if not (0 <= i <= 3 and 0 <= j <= 3) or i == j:
-        raise ValueError(f"edges must be two different edge indices in 0..3, got {edges!r}")
+        raise ConstraintError(f"edges must be two different edge indices in 0..3, got {edges!r}")
     if (i - j) % 4 == 2:
         return (min(i, j), max(i, j)), "opposite"
     if (j - i) % 4 == 1:
@@ -75,7 +76,7 @@ def shared_similarity(z, w, first):
     a1, _ = edge_similarity(z, w, first)
     a2, _ = edge_similarity(z, w, (first + 1) % 4)
     if abs(a1 - a2) > SIMILARITY_RTOL * max(abs(a1), abs(a2)):
-        raise ValueError(
+        raise ConstraintError(
             f"adjacent constrained edges {first} and {(first + 1) % 4} must undergo one shared "
             f"similarity, but no similarity maps src points {idx} to dst points {idx} (edge scale-"
             f"rotations {complex(a1):.6g} and {complex(a2):.6g} differ): move only the free point "
@@ -169,7 +170,7 @@ class ConstrainedFPI(Transform):
         k = _check_points_per_edge(points_per_edge)
         delta = float(delta)
         if not (np.isfinite(delta) and delta > 0):
-            raise ValueError(f"delta must be a positive number, got {delta!r}")
+            raise ConstraintError(f"delta must be a positive number, got {delta!r}")
         if kind == "adjacent":
             shared_similarity(z, w, edges[0])  # refuse inconsistent points early
         # As for the FPI: solve counter-clockwise, mirror the parts back.
@@ -189,7 +190,7 @@ class ConstrainedFPI(Transform):
     def _init_parts(self, z, w, pre, core, post):
         self._z, self._w = z, w
         if pre.beta != 0:  # the block's pre-Möbius has no offset term
-            raise AssertionError("pre-Möbius must have beta == 0")
+            raise ConstraintError("ConstrainedFPI parts: the pre-Möbius must have beta == 0 (the block stores none)")
         self.pre, self.core, self.post = pre, core, post
 
     @classmethod
@@ -269,11 +270,11 @@ def as_mobius(t):
 
 def _check_points_per_edge(k):
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-        raise TypeError(f"points_per_edge must be an int, got {type(k).__name__}")
+        raise ArgumentTypeError(f"points_per_edge must be an int, got {type(k).__name__}")
     k = int(k)
     kmax = MAX_CENTERS // 4
     if not 2 <= k <= kmax:
-        raise ValueError(
+        raise ConstraintError(
             f"points_per_edge must be in 2..{kmax}: the spline gets 4 * points_per_edge "
             f"centers and the parameter block holds at most {MAX_CENTERS}, got {k}"
         )

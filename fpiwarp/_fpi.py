@@ -10,6 +10,7 @@ the FPI of the swapped quads, exact and with the same K.
 import numpy as np
 
 from ._linear import RLinear
+from ._mobius import centered_at_zero
 from ._points import as_xy
 from ._quad import check_quad_pair, parallelogram_mobius
 from ._transform import Transform, chain
@@ -155,10 +156,6 @@ class FPI(Transform):
         return f"FPI(src={self.src.tolist()}, dst={self.dst.tolist()})"
 
 
-def _centered_at_zero(m):
-    """(s2, k2, q2) with m(p) = q2 + k2 p / (1 - s2 p), for m.q == 0 or any q."""
-    if m.q != 0:
-        from ._mobius import Mobius
-
-        m = Mobius(*m.coefficients, center=0)
-    return (m.s, m.alpha, m.beta)
+#: The former name of :func:`fpiwarp._mobius.centered_at_zero`, still
+#: imported by _constrained.
+_centered_at_zero = centered_at_zero

@@ -73,7 +73,7 @@ class Mobius(Transform):
         # cross-ratio maps of each triple to (0, 1, inf), then compose
         mz = _to_standard(z)
         mw = _to_standard(w)
-        return Mobius(*_matmul(_inv(mw), mz), center=z.mean())
+        return Mobius(*mobius_product(_inv(mw), mz), center=z.mean())
 
     def _set(self, q, s, alpha, beta):
         self.q, self.s, self.alpha, self.beta = q, s, alpha, beta
@@ -120,7 +120,7 @@ class Mobius(Transform):
 
     def _fuse_with(self, nxt):
         if isinstance(nxt, Mobius):
-            return Mobius(*_matmul(nxt.coefficients, self.coefficients), center=self.q)
+            return Mobius(*mobius_product(nxt.coefficients, self.coefficients), center=self.q)
         return None
 
     def conjugated(self):
@@ -136,10 +136,26 @@ class Mobius(Transform):
         return f"Mobius.centered(q={self.q!r}, s={self.s!r}, alpha={self.alpha!r}, beta={self.beta!r})"
 
 
-def _matmul(m, n):
+def mobius_product(m, n):
+    """Coefficients (a, b, c, d) of the Möbius map m ∘ n, from those of m and
+    n (the product of their 2×2 coefficient matrices)."""
     a, b, c, d = m
     e, f, g, h = n
     return (a * e + b * g, a * f + b * h, c * e + d * g, c * f + d * h)
+
+
+_matmul = mobius_product  # the former name, still imported by _constrained
+
+
+def centered_at_zero(m):
+    """(s, alpha, beta) of Möbius ``m`` written about 0:
+    m(p) = beta + alpha p / (1 - s p), whatever its center q.
+
+    The parameter block stores post-Möbius maps in this form.
+    """
+    if m.q != 0:
+        m = Mobius(*m.coefficients, center=0)
+    return (m.s, m.alpha, m.beta)
 
 
 def _inv(m):

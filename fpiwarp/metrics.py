@@ -26,7 +26,7 @@ def _derivatives(f, points, h):
     z = as_complex(points)
     if isinstance(f, Transform):
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            _, fz, fzb = f._wirtinger(z)
+            _, fz, fzb = f.wirtinger(z)
         return fz, fzb
     if not callable(f):
         raise TypeError(f"f must be a Transform or a callable on (N, 2) points, got {type(f).__name__}")

@@ -95,9 +95,9 @@ def test_a_stack_on_each_backend_matches_that_backends_warp_image(fpi, stack, an
 def test_warper_reuses_the_map_per_output_size(fpi, stack):
     warper = Warper(fpi)
     warper(stack[0])
-    first = warper.positions((H, W))
+    first = warper.bound.positions((H, W))
     warper(stack[1])
-    assert warper.positions((H, W)) is first
+    assert warper.bound.positions((H, W)) is first
     np.testing.assert_allclose(first[3, 5], fpi.inverse([[5.0, 3.0]])[0], rtol=0, atol=1e-12)
 
 
@@ -248,7 +248,7 @@ def test_dask_cluster_runs_the_same_batch(photos, tmp_path, fpi):
 
 def test_unreachable_dask_scheduler_is_a_clear_error(photos, tmp_path, fpi, monkeypatch):
     pytest.importorskip("distributed")
-    monkeypatch.setattr("fpiwarp.batch.DASK_CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr("fpiwarp.batch_dask.DASK_CONNECT_TIMEOUT", "1s")
     with pytest.raises(ConnectionError, match="cannot connect to the Dask scheduler"):
         run_batch(fpi, photos, tmp_path / "out", scheduler="tcp://127.0.0.1:9")
 
