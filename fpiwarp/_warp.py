@@ -43,7 +43,8 @@ def warp_image(image, transform, output_shape=None, *, order=1, mode="constant",
     mode : 'constant', 'edge', 'reflect' or 'wrap'
     cval : value (or one per channel) outside the image in 'constant' mode,
         and wherever the source position is not finite (near the pole);
-        finite, within ±1e38
+        finite; clamped to the range of uint8/uint16 images, within ±1e38
+        for float32 images
     backend : name from :func:`fpiwarp.backends.backend_status`
     backend_options : dict of options the backend declares (see
         :func:`fpiwarp.backends.backend_capabilities`), e.g.

@@ -129,7 +129,7 @@ def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant
             shape,
             order=warpers[0].order,
             mode=mode,
-            cval=check_cval(cval, c),
+            cval=check_cval(cval, c, stack.dtype),
         )
     else:
         chosen = warpers * n if len(warpers) == 1 else warpers

@@ -13,8 +13,9 @@ Rules every entry point shares:
 * ``order`` and ``output_shape`` take integers; integral floats (``1.0``,
   ``np.float64(3)``) are accepted as those integers everywhere, anything
   else (``1.5``, ``inf``, ``True``) is refused;
-* ``cval`` is finite and within ±:data:`CVAL_LIMIT`, so that float32
-  kernels never overflow to inf or NaN while interpolating it;
+* ``cval`` is finite; for uint8/uint16 images it is clamped to the
+  dtype's range, for float32 images it must lie within ±:data:`CVAL_LIMIT`,
+  so that float32 kernels never overflow to inf or NaN interpolating it;
 * sizes are checked up front against :data:`~fpiwarp.backends.capabilities.MAX_ELEMENTS`,
   the chosen backend's own limits and this machine's memory.
 """
@@ -129,9 +130,15 @@ def check_output_shape(output_shape, image):
     return oh, ow
 
 
-def check_cval(cval, channels):
-    """cval as float64 (channels,): a finite number or one per channel,
-    each within ±:data:`CVAL_LIMIT`."""
+def check_cval(cval, channels, dtype=None):
+    """cval as float64 (channels,): a finite number or one per channel.
+
+    For an integer ``dtype`` it is clamped to the dtype's range (0..255,
+    0..65535): a border of 1000 in a uint8 image is 255 wherever it shows
+    alone, and interpolating it in float32 could not be exact. Otherwise
+    (float32 images, or no dtype) each value must lie within
+    ±:data:`CVAL_LIMIT`, where float32 interpolation cannot overflow.
+    """
     problem = f"cval must be a finite number or one per channel ({channels}), got {cval!r}"
     try:
         arr = np.asarray(cval, dtype=np.float64)
@@ -139,9 +146,12 @@ def check_cval(cval, channels):
         raise ArgumentError(problem) from None
     if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != channels) or not np.all(np.isfinite(arr)):
         raise ArgumentError(problem)
-    if np.any(np.abs(arr) > CVAL_LIMIT):
+    if dtype is not None and np.dtype(dtype).kind == "u":
+        arr = np.clip(arr, 0.0, float(np.iinfo(dtype).max))
+    elif np.any(np.abs(arr) > CVAL_LIMIT):
         raise ArgumentError(
-            f"cval must lie within ±{CVAL_LIMIT:g} (float32 interpolation would overflow), got {cval!r}"
+            f"cval must lie within ±{CVAL_LIMIT:g} for float32 images (float32 interpolation would "
+            f"overflow), got {cval!r}"
         )
     return np.broadcast_to(arr, (channels,)).copy()
 
@@ -274,7 +284,7 @@ def check_warp_arguments(image, transform, output_shape, order, mode, cval, capa
     backend's ``capabilities``; return :class:`WarpArguments`."""
     order, mode = check_warp_options(transform, order, mode)
     img, squeeze = check_image(image)
-    cval = check_cval(cval, img.shape[2])
+    cval = check_cval(cval, img.shape[2], img.dtype)
     shape = check_output_shape(output_shape, img)
     if img.dtype not in capabilities.dtypes or order not in capabilities.orders or mode not in capabilities.modes:
         raise ArgumentError(f"the {backend} backend cannot warp {img.dtype} images at order {order} in mode {mode!r}")
