@@ -55,8 +55,8 @@ BUG_STATUS = 70
 #: largest distortion K of maps whose K is not one constant.
 K_SAMPLES = 64
 
-#: Options whose value may start with "-" (negative coordinates).
-_NUMERIC_OPTIONS = ("--src", "--dst", "--edges", "--cval")
+#: Options whose value may start with "-" (negative coordinates, a mistyped size).
+_NUMERIC_OPTIONS = ("--src", "--dst", "--edges", "--cval", "--output-shape")
 
 
 class UsageError(Exception):

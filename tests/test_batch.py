@@ -4,12 +4,15 @@ failures named)."""
 
 import hashlib
 import io as pyio
+import os
+import pickle
+import time
 
 import numpy as np
 import pytest
 
 import fpiwarp
-from fpiwarp import io
+from fpiwarp import batch_folders, io
 from fpiwarp.batch import BatchSummary, Progress, Warper, list_inputs, run_batch, warp_batch, warp_images
 
 H, W = 24, 32
@@ -293,3 +296,72 @@ def test_output_folder_containing_the_input_folder(tmp_path):
     assert list_inputs(photos, exclude=tmp_path) == [photos / "a.png"]
     assert list_inputs(photos, "**/*", exclude=photos / "out") == [photos / "a.png"]
     assert list_inputs(photos, "**/*", exclude=tmp_path) == [photos / "a.png", photos / "out" / "b.png"]
+
+
+# --------------------------------------------------------------------------
+# Issue 12: names with newlines, stale temporary files; batching by capability
+
+
+@pytest.mark.parametrize("name", ["bad\nname.png", "tab\there.png", "cr\rname.png", "esc\x1b[31m.png"])
+def test_a_file_name_with_control_characters_keeps_one_line_per_failure(tmp_path, fpi, name):
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / name).write_bytes(b"\x89PNG\r\n\x1a\nnope")
+    (src / "other.png").write_bytes(b"not a png either")
+    summary = run_batch(fpi, src, tmp_path / "out")
+    lines = summary.report()
+    failures = [line for line in lines if line.startswith("failed: ")]
+    assert len(failures) == 2 and len(lines) == 3
+    assert all(ch.isprintable() for line in lines for ch in line)
+    assert any(repr(name)[1:-1] in line for line in failures)
+
+
+def test_stale_temporary_files_are_removed_and_recent_ones_listed(photos, tmp_path, fpi):
+    out = tmp_path / "out"
+    (out / "sub").mkdir(parents=True)
+    stale = out / "sub" / f".a_rgb.png.k1ll3d{io.TEMP_SUFFIX}"
+    recent = out / f".b_gray16.png.w0rk1n{io.TEMP_SUFFIX}"
+    kept = out / "notes.fpiwarp-tmp.txt"
+    for path in (stale, recent, kept):
+        path.write_bytes(b"partial")
+    old = time.time() - batch_folders.STALE_TEMP_SECONDS - 60
+    os.utime(stale, (old, old))
+    summary = run_batch(fpi, photos, out, pattern="*.png")
+    assert not stale.exists() and recent.exists() and kept.exists()
+    assert summary.removed_temps == [str(stale)] and summary.recent_temps == [str(recent)]
+    report = "\n".join(summary.report())
+    assert "removed 1 temporary files left by an interrupted run" in report
+    assert f"temporary file of a run in progress or just killed: {recent}" in report
+
+
+def test_a_batching_backend_gets_the_whole_stack_in_one_call(fpi, stack, monkeypatch):
+    from fpiwarp.backends import get_backend
+
+    backend = get_backend("numpy")
+    calls = []
+    original = backend.warp_batch
+
+    def counting(*args, **kwargs):
+        calls.append(args[0].shape)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(backend, "warp_batch", counting)
+    out = warp_batch(stack, fpi, order=3.0)
+    assert calls == [stack.shape]
+    np.testing.assert_array_equal(out[2], fpiwarp.warp_image(stack[2], fpi, order=3))
+
+
+def test_stack_options_are_checked_like_warp_image(fpi, stack):
+    with pytest.raises(fpiwarp.SizeLimitError):
+        warp_batch(stack, fpi, (10**7, 10**7))
+    with pytest.raises(fpiwarp.ArgumentError, match="order"):
+        warp_batch(stack, fpi, order=1.5)
+    with pytest.raises(fpiwarp.ArgumentError, match="backend_options"):
+        list(warp_images(stack, fpi, backend_options={"hardware_filter": True}))
+
+
+def test_warpers_pickle_without_their_bound_map(fpi, stack):
+    warper = Warper(fpi)
+    warper(stack[0])
+    clone = pickle.loads(pickle.dumps(warper))
+    np.testing.assert_array_equal(clone(stack[1]), warper(stack[1]))
