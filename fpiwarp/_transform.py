@@ -20,6 +20,7 @@ import contextvars
 
 import numpy as np
 
+from ._errors import ArgumentError, ArgumentTypeError
 from ._points import as_complex, as_xy
 
 _UNSOLVED_AS_NAN = contextvars.ContextVar("fpiwarp_unsolved_as_nan", default=False)
@@ -165,10 +166,10 @@ class Compound(Transform):
         flat = []
         for step in steps:
             if not isinstance(step, Transform):
-                raise TypeError(f"compound steps must be Transforms, got {type(step).__name__}")
+                raise ArgumentTypeError(f"compound steps must be Transforms, got {type(step).__name__}")
             flat.extend(step.steps if isinstance(step, Compound) else [step])
         if not flat:
-            raise ValueError("a compound needs at least one step")
+            raise ArgumentError("a compound needs at least one step")
         self.steps = tuple(_fuse(flat))
 
     def map_complex(self, z):

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from ._errors import ArgumentError, FpiwarpError
 from .io import TEMP_SUFFIX, OutputExistsError, check_writable, is_temp_file, read_image, write_image
+from .warper import Warper
 
 __all__ = ["STALE_TEMP_SECONDS", "BatchSummary", "list_inputs", "process_file", "run_batch"]
 
@@ -210,8 +211,6 @@ def run_batch(
     files in progress are finished or cleaned up, the summary is marked
     interrupted and the interrupt re-raised.
     """
-    from .batch import Warper
-
     if int(jobs) < 1:
         raise ArgumentError(f"jobs must be at least 1, got {jobs}")
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,

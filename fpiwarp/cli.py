@@ -38,11 +38,14 @@ import numpy as np
 from . import __version__
 from ._errors import ArgumentError, BackendUnavailableError, FpiwarpError
 from ._fpi import FPI
+from ._local import LocalDeformation
 from ._sampling import MODES, ORDERS
+from ._warp import warp_image
 from .backends import REGISTRY, backend_status
+from .batch import BatchSummary, Progress, list_inputs, run_batch
 from .io import ImageError, OutputExistsError, check_writable, read_image, write_image
 from .metrics import grid
-from .spec import SpecError
+from .spec import SpecError, load_spec
 
 #: The demo's target corners, as fractions of (width - 1, height - 1); the
 #: source corners are the image's own, clockwise on screen from top left.
@@ -113,8 +116,6 @@ def _output_shape(text):
 
 
 def _transform_from_args(args):
-    from .spec import load_spec
-
     if args.spec is not None:
         if args.src is not None or args.dst is not None or args.edges is not None:
             raise UsageError("give either --spec or --src/--dst/--edges, not both")
@@ -124,8 +125,6 @@ def _transform_from_args(args):
     src, dst = _quad(args.src, "--src"), _quad(args.dst, "--dst")
     if args.edges is None:
         return FPI(src, dst)
-    from ._local import LocalDeformation
-
     edges = tuple(_edges(args.edges))
     try:
         return LocalDeformation(src, dst, edges=edges)
@@ -173,8 +172,6 @@ def cmd_demo(args):
     src = [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]]
     dst = [[fx * (w - 1), fy * (h - 1)] for fx, fy in DEMO_DST]
     fpi = FPI(src, dst)
-    from ._warp import warp_image
-
     warped = warp_image(image, fpi, order=3, backend=args.backend)
     write_image(args.output, warped, info, overwrite=args.overwrite)
     print(f"wrote {args.output}")
@@ -192,8 +189,6 @@ def cmd_warp(args):
     _check_output(args.input, args.output, args.overwrite)
     image, info = read_image(args.input)
     check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
-    from ._warp import warp_image
-
     warped = warp_image(
         image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend
     )
@@ -205,9 +200,6 @@ def cmd_warp(args):
 
 def cmd_batch(args):
     """Warp a folder; summary at the end, status 1 if any file failed."""
-    from .batch import BatchSummary, Progress, list_inputs, run_batch
-    from .spec import load_spec
-
     transform = load_spec(args.spec)
     output_shape = _output_shape(args.output_shape)
     cval = _cval(args.cval)

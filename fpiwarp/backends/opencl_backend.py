@@ -31,6 +31,7 @@ import threading
 import numpy as np
 
 from .. import resources
+from .._errors import SizeLimitError
 from ..params import STAGE_ROWS
 
 ENV_DEVICE = "FPIWARP_OPENCL_DEVICE"
@@ -223,7 +224,7 @@ class Backend:
         if n == 0:
             return out.astype(np.float64).reshape(shape)
         if n >= 2**30:
-            raise ValueError(f"at most 2**30 points per call on the opencl backend, got {n}")
+            raise SizeLimitError(f"at most 2**30 points per call on the opencl backend, got {n}")
         with self._lock:
             block, kind = self._upload_block(transform)
             kern = self.kernel("map_points", kind + self._point_options + (f"-DFW_LOCAL_X={self.local_x}",))
@@ -282,7 +283,7 @@ class DeviceWarp:
         h, w, c = image.shape
         oh, ow = output_shape
         if max(h * w, oh * ow) * c >= 2**31:
-            raise ValueError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
+            raise SizeLimitError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
         self.backend, self.image_shape, self.output_shape = be, (h, w, c), (oh, ow)
         self.out = np.empty((oh, ow, c), dtype=image.dtype)
         self._cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))

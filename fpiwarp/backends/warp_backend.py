@@ -31,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .._errors import ArgumentError
 from .._sampling import MODES
 from ..params import MAX_STAGES, STAGE_ROWS
 
@@ -93,7 +94,7 @@ def _device_name(wp, device=None):
         return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
     known = [str(d) for d in wp.get_devices()]
     if name not in known:
-        raise ValueError(f"Warp device {name!r} is not available here; choose from {known}")
+        raise ArgumentError(f"Warp device {name!r} is not available here; choose from {known}")
     return name
 
 
@@ -113,7 +114,7 @@ def _thread_count(threads=None):
     except (TypeError, ValueError):
         count = 0
     if isinstance(threads, bool) or count < 1:
-        raise ValueError(f"{source} must be a positive integer, got {threads!r}")
+        raise ArgumentError(f"{source} must be a positive integer, got {threads!r}")
     return count
 
 
