@@ -61,11 +61,3 @@ __all__ = [
     "warp_images",
     "write_image",
 ]
-
-# Public classes report as fpiwarp.Name (in reprs, tracebacks and docs),
-# not as the private module that defines them.
-for _name in __all__:
-    _obj = globals()[_name]
-    if isinstance(_obj, type):
-        _obj.__module__ = __name__
-del _name, _obj

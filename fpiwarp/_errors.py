@@ -93,3 +93,10 @@ class OutputExistsError(FpiwarpError, FileExistsError):
 
 class SpecError(FpiwarpError, ValueError):
     """An invalid spec file; the message names the file, the field and the problem."""
+
+
+# Reported as fpiwarp.Name (in tracebacks, reprs and docs), where they are
+# exported, not as this private module.
+for _cls in (globals()[_name] for _name in __all__):
+    _cls.__module__ = "fpiwarp"
+del _cls

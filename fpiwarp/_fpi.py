@@ -56,7 +56,7 @@ class FPI(Transform):
     >>> FPI([[0, 0], [1, 1], [1, 0], [0, 1]], [[0, 0], [2, 0], [2, 1], [0, 1]])
     Traceback (most recent call last):
     ...
-    fpiwarp._errors.DegenerateQuadError: src is self-intersecting (bow-tie): edge 0-1 crosses edge 2-3
+    fpiwarp.DegenerateQuadError: src is self-intersecting (bow-tie): edge 0-1 crosses edge 2-3
     """
 
     def __init__(self, src, dst):

@@ -9,13 +9,14 @@ similarity), and the inverse has the same form with
 
 import numpy as np
 
+from ._errors import ArgumentError
 from ._transform import Transform
 
 
 def _complex(value, name):
     value = complex(value)
     if not np.isfinite(value.real) or not np.isfinite(value.imag):
-        raise ValueError(f"{name} must be finite, got {value}")
+        raise ArgumentError(f"{name} must be finite, got {value}")
     return value
 
 
@@ -31,7 +32,7 @@ class Mobius(Transform):
     >>> Mobius(1, 2, 2, 4)
     Traceback (most recent call last):
     ...
-    ValueError: Möbius coefficients need ad - bc != 0
+    fpiwarp.ArgumentError: Möbius coefficients need ad - bc != 0
     """
 
     def __init__(self, a, b, c, d, *, center=None):
@@ -39,7 +40,7 @@ class Mobius(Transform):
         det = a * d - b * c
         scale = max(abs(a * d), abs(b * c), 1e-300)
         if abs(det) <= 1e-14 * scale:
-            raise ValueError("Möbius coefficients need ad - bc != 0")
+            raise ArgumentError("Möbius coefficients need ad - bc != 0")
         q = 0j if center is None else _complex(center, "center")
         if abs(c * q + d) <= 1e-12 * (abs(c * q) + abs(d)):
             # the center sits on the pole -d/c (c != 0 here, as ad - bc != 0):
@@ -54,7 +55,7 @@ class Mobius(Transform):
         obj = cls.__new__(cls)
         alpha = _complex(alpha, "alpha")
         if alpha == 0:
-            raise ValueError("alpha must be non-zero")
+            raise ArgumentError("alpha must be non-zero")
         obj._set(_complex(q, "q"), _complex(s, "s"), alpha, _complex(beta, "beta"))
         return obj
 
@@ -66,10 +67,10 @@ class Mobius(Transform):
         z = as_complex(src, "src")
         w = as_complex(dst, "dst")
         if z.shape != (3,) or w.shape != (3,):
-            raise ValueError("from_points needs three source and three target points")
+            raise ArgumentError("from_points needs three source and three target points")
         for name, pts in (("src", z), ("dst", w)):
             if len({complex(v) for v in pts}) < 3 or not np.all(np.isfinite(pts)):
-                raise ValueError(f"from_points needs three distinct finite {name} points, got {pts}")
+                raise ArgumentError(f"from_points needs three distinct finite {name} points, got {pts}")
         # cross-ratio maps of each triple to (0, 1, inf), then compose
         mz = _to_standard(z)
         mw = _to_standard(w)
