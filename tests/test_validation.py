@@ -171,7 +171,9 @@ def test_bad_output_shapes_are_value_errors_not_overflow(image, fpi, shape):
 
 
 @settings(max_examples=30, deadline=None)
-@given(rows=st.integers(1, 40), cols=st.integers(1, 40), kind=st.sampled_from([float, np.float64, np.float32, np.int32]))
+@given(
+    rows=st.integers(1, 40), cols=st.integers(1, 40), kind=st.sampled_from([float, np.float64, np.float32, np.int32])
+)
 def test_integral_output_shapes_equal_their_ints(rows, cols, kind):
     assert check_output_shape((kind(rows), kind(cols)), None) == (rows, cols)
     assert all(type(v) is int for v in check_output_shape((kind(rows), kind(cols)), None))

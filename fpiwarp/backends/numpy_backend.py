@@ -98,6 +98,7 @@ class Backend:
             wide = np.ascontiguousarray(stack.transpose(1, 2, 0, 3)).reshape(h, w, n * c)
             flat = self.warp_image(wide, transforms[0], output_shape, order=order, mode=mode, cval=np.tile(cval, n))
             return flat.reshape(output_shape[0], output_shape[1], n, c).transpose(2, 0, 1, 3)
-        return np.stack(
-            [self.warp_image(stack[i], t, output_shape, order=order, mode=mode, cval=cval) for i, t in enumerate(transforms)]
-        )
+        return np.stack([
+            self.warp_image(image, t, output_shape, order=order, mode=mode, cval=cval)
+            for image, t in zip(stack, transforms, strict=True)
+        ])
