@@ -67,7 +67,7 @@ class FPI(Transform):
             z, w = np.conj(z), np.conj(w)
         m_src = parallelogram_mobius(z)
         m_dst = parallelogram_mobius(w)
-        linear = affine_between(m_src._map(z), m_dst._map(w))
+        linear = affine_between(m_src.map_complex(z), m_dst.map_complex(w))
         if flip:
             m_src, linear, m_dst = m_src.conjugated(), linear.conjugated(), m_dst.conjugated()
             z, w = np.conj(z), np.conj(w)
@@ -121,7 +121,7 @@ class FPI(Transform):
             w = None if w is None else complex(w[0], w[1])
         else:
             with np.errstate(all="ignore"):
-                w = complex(self._m_dst_inv._map(self.linear._map(m.beta - m.alpha / m.s)))
+                w = complex(self._m_dst_inv.map_complex(self.linear.map_complex(m.beta - m.alpha / m.s)))
         size = float(np.max(np.abs(self._w - self._w.mean())))
         if w is None or not np.isfinite(w) or abs(w - self._w.mean()) > size / POLE_RTOL:
             return None
@@ -133,10 +133,10 @@ class FPI(Transform):
         return self.pole_image is None
 
     def _map(self, z):
-        return self._m_dst_inv._map(self.linear._map(self.m_src._map(z)))
+        return self._m_dst_inv.map_complex(self.linear.map_complex(self.m_src.map_complex(z)))
 
     def _wirtinger(self, z):
-        w, fz, fzb = self.m_src._wirtinger(z)
+        w, fz, fzb = self.m_src.wirtinger(z)
         w, fz, fzb = chain(self.linear, w, fz, fzb)
         return chain(self._m_dst_inv, w, fz, fzb)
 

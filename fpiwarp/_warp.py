@@ -6,7 +6,7 @@ backend, so every backend sees the same contract.
 """
 
 from .backends import backend_capabilities, get_backend
-from .validation import check_point_count, check_points, check_transform, check_warp_arguments
+from .validation import check_map_size, check_point_count, check_points, check_transform, check_warp_arguments
 
 # Until gl.py and backends/gl_backend.py import these from fpiwarp.validation:
 from .validation import check_cval, check_image, check_output_shape  # noqa: E402, F401
@@ -22,6 +22,7 @@ def map_points(transform, points, backend="numpy"):
     pts = check_points(points)
     caps = backend_capabilities(backend)
     check_point_count(pts, caps, backend)
+    check_map_size(transform, caps, backend)
     return get_backend(backend).map_points(transform, pts)
 
 

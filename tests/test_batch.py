@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 import fpiwarp
 from fpiwarp import batch_folders, io
@@ -365,3 +366,15 @@ def test_warpers_pickle_without_their_bound_map(fpi, stack):
     warper(stack[0])
     clone = pickle.loads(pickle.dumps(warper))
     np.testing.assert_array_equal(clone(stack[1]), warper(stack[1]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(names=st.lists(st.text(min_size=1, max_size=12), min_size=1, max_size=5),
+       reason=st.text(max_size=30))
+def test_the_failure_list_keeps_one_line_per_file_whatever_the_names(names, reason):
+    summary = BatchSummary(total=len(names))
+    for name in names:
+        summary.record("failed", f"in/{name}", f"in/{name}: {reason}")
+    lines = summary.report()
+    assert len(lines) == 1 + len(names)
+    assert all("\n" not in line and "\r" not in line and all(ch.isprintable() for ch in line) for line in lines)

@@ -227,3 +227,19 @@ def test_capabilities_are_declared_for_every_backend():
     assert [opt.name for opt in fpiwarp.backend_capabilities("gl").options] == ["hardware_filter"]
     with pytest.raises(ArgumentError, match="unknown backend 'vulkan'"):
         fpiwarp.backend_capabilities("vulkan")
+
+
+@pytest.mark.parametrize("backend", ["opencl", "warp", "gl"])
+def test_map_points_refuses_maps_beyond_the_kernels_stages(backend):
+    steps = [fpiwarp.FPI(SRC, DST) if k % 2 == 0 else fpiwarp.FPI(DST, SRC) for k in range(MAX_STAGES + 1)]
+    with pytest.raises(SizeLimitError, match=f"above the {backend} backend's limit"):
+        fpiwarp.map_points(fpiwarp.Compound(steps), [[1.0, 2.0]], backend=backend)
+
+
+def test_opencl_point_limit_is_checked_before_the_backend():
+    from fpiwarp.validation import check_point_count
+
+    caps = backend_capabilities("opencl")
+    points = np.broadcast_to(np.zeros(2), (caps.max_points + 1, 2))  # no memory behind it
+    with pytest.raises(SizeLimitError, match=f"{caps.max_points + 1} points is above the opencl backend's limit"):
+        check_point_count(points, caps, "opencl")
