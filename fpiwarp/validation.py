@@ -166,12 +166,26 @@ def check_points(points, name="points"):
     return pts.astype(np.float64, copy=False)
 
 
+#: Where Linux states the memory limit of this process's control group
+#: (a container's limit, often below the machine's memory).
+CGROUP_MEMORY_MAX = "/sys/fs/cgroup/memory.max"
+
+
 def physical_memory():
-    """Bytes of memory of this machine, or None where the OS does not say."""
+    """Bytes of memory this process may use: the machine's, or its
+    container's limit when lower; None where the OS does not say."""
     try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, OSError, ValueError):
-        return None
+        total = None
+    try:
+        with open(CGROUP_MEMORY_MAX, encoding="ascii") as fh:
+            text = fh.read().strip()
+    except OSError:
+        return total
+    if not text.isdigit():  # "max": no limit
+        return total
+    return int(text) if total is None else min(total, int(text))
 
 
 def _size(shape):

@@ -243,3 +243,15 @@ def test_opencl_point_limit_is_checked_before_the_backend():
     points = np.broadcast_to(np.zeros(2), (caps.max_points + 1, 2))  # no memory behind it
     with pytest.raises(SizeLimitError, match=f"{caps.max_points + 1} points is above the opencl backend's limit"):
         check_point_count(points, caps, "opencl")
+
+
+@pytest.mark.parametrize("limit, expected", [("max\n", 64 * 2**30), ("1073741824\n", 2**30), (None, 64 * 2**30)])
+def test_memory_is_the_machines_or_its_containers_limit(tmp_path, monkeypatch, limit, expected):
+    from fpiwarp import validation
+
+    path = tmp_path / "memory.max"
+    if limit is not None:
+        path.write_text(limit)
+    monkeypatch.setattr(validation, "CGROUP_MEMORY_MAX", str(path))
+    monkeypatch.setattr(validation.os, "sysconf", lambda name: {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": 16 * 2**20}[name])
+    assert validation.physical_memory() == expected
