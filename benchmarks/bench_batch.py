@@ -51,10 +51,7 @@ def sample_transform():
 
 
 def numpy_maps(transform):
-    grid = np.empty((HEIGHT, WIDTH, 2))
-    grid[..., 0] = np.arange(WIDTH)
-    grid[..., 1] = np.arange(HEIGHT)[:, None]
-    src = transform.inverse(grid).astype(np.float32)
+    src = fpiwarp.source_positions(transform, (HEIGHT, WIDTH)).astype(np.float32)
     return np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
 
 

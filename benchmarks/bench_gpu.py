@@ -9,7 +9,7 @@ For each backend, RGB and RGBA uint8 images warped by a generic FPI
   the device and the result left there, a new map solved on the host and
   its parameters uploaded every frame, each frame waited for (the preview's
   frame while a corner is dragged): Warp and OpenCL relaunch the backend's
-  own kernel on its kept buffers; GL draws with
+  own kernel through its public ``prepare_warp`` job; GL draws with
   :class:`fpiwarp.gl.Renderer` into an offscreen framebuffer;
 - "on device, kernel only": one map, launches back to back (GL: each draw
   waited for), i.e. the kernel's own throughput;
@@ -65,51 +65,19 @@ def _frames(n, launch, sync, each=True):
     return (time.perf_counter() - t0) / n
 
 
-def warp_on_device(be, img, w, h, n, new_map):
-    """Per-frame time of the Warp kernel on the backend's kept buffers."""
-    wp = be._wp
-    be.warp_image(img, fpi_for(w, h), (h, w), order=1, mode="constant", cval=np.zeros(img.shape[2]))
-    if be._on_cpu:  # the CPU path aliases numpy arrays instead of keeping buffers
-        src = wp.array(img, dtype=wp.uint8, device="cpu", copy=False)
-        out = wp.array(np.empty_like(img), dtype=wp.uint8, device="cpu", copy=False)
-    else:
-        src, out = be._buffers["image"], be._buffers["warped"]
-
-    blk = be._upload_block(fpi_for(w, h).inverse)
+def kernel_on_device(be, img, w, h, n, new_map):
+    """Per-frame time of a backend's own kernel on an image kept on the
+    device (``Backend.prepare_warp``: Warp and OpenCL), a new map uploaded
+    per frame when ``new_map``."""
+    job = be.prepare_warp(img, (h, w), order=1, mode="constant", cval=np.zeros(img.shape[2]))
+    job.set_map(fpi_for(w, h))
 
     def launch(k):
-        b = be._upload_block(fpi_for(w, h, k % 8).inverse) if new_map else blk
-        be._launch(be._k.IMAGE_KERNELS[1], h, w, [b, src, out, 0, wp.vec4(0.0, 0.0, 0.0, 0.0), 255.0])
+        if new_map:
+            job.set_map(fpi_for(w, h, k % 8))
+        job.launch()
 
-    return _frames(n, launch, lambda: wp.synchronize_device(be.device), each=new_map)
-
-
-def opencl_on_device(be, img, w, h, n, new_map):
-    """Per-frame time of the OpenCL kernel on the backend's kept buffers."""
-    from fpiwarp.backends.opencl_backend import IMAGE_SLACK, sampling_options
-
-    c = img.shape[2]
-    be.warp_image(img, fpi_for(w, h), (h, w), order=1, mode="constant", cval=np.zeros(c))
-    src = be._buffer("image_in", img.nbytes + IMAGE_SLACK)
-    dst = be._buffer("image_out", img.nbytes)
-    cval4 = be._cl.cltypes.make_float4(0, 0, 0, 0)
-    cols = -(-w // be.local_x) * be.local_x
-
-    def prepare(k):
-        block, kind = be._upload_block(fpi_for(w, h, k % 8).inverse)
-        options = kind + sampling_options(img.dtype, c, 1, "constant")
-        options += (f"-DFW_LOCAL_X={be.local_x}", f"-DFW_VN={be.lanes}")
-        kern = be.kernel("warp_image", options)
-        kern.set_args(block, src, np.int32(w), np.int32(h), dst, np.int32(w), np.int32(h), cval4)
-        return kern
-
-    first = prepare(0)
-
-    def launch(k):
-        kern = prepare(k) if new_map else first
-        be._cl.enqueue_nd_range_kernel(be.queue, kern, (cols, h), (be.local_x, 1))
-
-    return _frames(n, launch, be.queue.finish, each=new_map)
+    return _frames(n, launch, job.finish, each=new_map)
 
 
 def gl_on_device(be, img, w, h, n, new_map):
@@ -140,7 +108,7 @@ def gl_on_device(be, img, w, h, n, new_map):
         tex.release()
 
 
-ON_DEVICE = {"warp": warp_on_device, "opencl": opencl_on_device, "gl": gl_on_device}
+ON_DEVICE = {"warp": kernel_on_device, "opencl": kernel_on_device, "gl": gl_on_device}
 
 
 def device_of(name, be):
@@ -164,7 +132,7 @@ def run(sizes, repeat, frames, backends):
             for name in backends:
                 be = get_backend(name)
                 methods[f"{name} end to end"] = functools.partial(
-                    be.warp_image, img, f, (h, w), order=1, mode="constant", cval=np.zeros(channels))
+                    fpiwarp.warp_image, img, f, (h, w), order=1, mode="constant", cval=0, backend=name)
                 for label, new_map in (("on device, new map per frame", True), ("on device, kernel only", False)):
                     methods[f"{name} {label}"] = functools.partial(ON_DEVICE[name], be, img, w, h, frames, new_map)
             times = {k: [] for k in methods}

@@ -48,11 +48,7 @@ def sample_transform():
 
 def numpy_maps(transform, shape):
     """cv2.remap maps from the numpy reference: the inverse at every pixel."""
-    h, w = shape
-    grid = np.empty((h, w, 2))
-    grid[..., 0] = np.arange(w)
-    grid[..., 1] = np.arange(h)[:, None]
-    src = transform.inverse(grid).astype(np.float32)
+    src = fpiwarp.source_positions(transform, shape).astype(np.float32)
     return np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
 
 

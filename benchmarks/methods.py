@@ -251,7 +251,7 @@ class MLSSimilarity:
         return finite_difference_jacobian(self, points)
 
 
-def _from_estimate(cls, src, dst):
+def from_estimate(cls, src, dst):
     """skimage's ``cls.from_estimate`` (>= 0.26) or the older ``estimate``."""
     if hasattr(cls, "from_estimate"):
         tf = cls.from_estimate(src, dst)
@@ -268,7 +268,7 @@ def projective(src, dst):
     """PROJ: the projective map taking quad ``src`` to ``dst`` (skimage)."""
     from skimage.transform import ProjectiveTransform
 
-    return _from_estimate(ProjectiveTransform, np.asarray(src, float), np.asarray(dst, float))
+    return from_estimate(ProjectiveTransform, np.asarray(src, float), np.asarray(dst, float))
 
 
 def thin_plate_spline(src, dst):
@@ -284,5 +284,5 @@ def thin_plate_spline(src, dst):
 
         rbf = RBFInterpolator(src, dst, kernel="thin_plate_spline")
         return (lambda p: rbf(np.asarray(p, float).reshape(-1, 2)).reshape(np.shape(p))), "scipy RBFInterpolator"
-    tps = _from_estimate(ThinPlateSplineTransform, src, dst)
+    tps = from_estimate(ThinPlateSplineTransform, src, dst)
     return (lambda p: tps(np.asarray(p, float).reshape(-1, 2)).reshape(np.shape(p))), "skimage ThinPlateSplineTransform"

@@ -138,13 +138,6 @@ def test_image(height, width, dtype, rng):
     return base.astype(np.float32)
 
 
-def output_grid(height, width):
-    grid = np.empty((height, width, 2))
-    grid[..., 0] = np.arange(width, dtype=np.float64)
-    grid[..., 1] = np.arange(height, dtype=np.float64)[:, None]
-    return grid
-
-
 def _skimage_warp(image, inverse_map, shape):
     from skimage.transform import warp
 
@@ -158,7 +151,7 @@ def _piecewise_affine(inverse, height, width, n=8):
 
     xs, ys = np.meshgrid(np.linspace(0, width - 1, n), np.linspace(0, height - 1, n))
     out_pts = np.c_[xs.ravel(), ys.ravel()]
-    return methods._from_estimate(PiecewiseAffineTransform, out_pts, inverse(out_pts))
+    return methods.from_estimate(PiecewiseAffineTransform, out_pts, inverse(out_pts))
 
 
 def image_implementations(image, transform, src, dst, backends):
@@ -174,14 +167,14 @@ def image_implementations(image, transform, src, dst, backends):
             lambda name=name: fpiwarp.warp_image(image, transform, shape, order=1, mode="constant", backend=name),
         )
     inverse = transform.inverse
-    maps = inverse(output_grid(height, width)).astype(np.float32)
+    maps = fpiwarp.source_positions(transform, shape).astype(np.float32)
     map_x, map_y = np.ascontiguousarray(maps[..., 0]), np.ascontiguousarray(maps[..., 1])
 
     def remap_precomputed():
         return cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
     def numpy_maps_remap():
-        m = inverse(output_grid(height, width)).astype(np.float32)
+        m = fpiwarp.source_positions(transform, shape).astype(np.float32)
         return cv2.remap(image, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
     homography = cv2.getPerspectiveTransform(src.astype(np.float32), dst.astype(np.float32))

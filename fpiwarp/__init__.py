@@ -4,7 +4,17 @@ from .resources import bind_source_packages
 
 bind_source_packages()  # kernels/ and glsl/ from this tree, never another checkout's
 
-from ._errors import BackendUnavailableError, DegenerateQuadError, InverseNotConvergedError
+from ._errors import (
+    ArgumentError,
+    ArgumentTypeError,
+    BackendUnavailableError,
+    ConstraintError,
+    DegenerateQuadError,
+    FpiwarpError,
+    InverseNotConvergedError,
+    MissingDependencyError,
+    SizeLimitError,
+)
 from ._constrained import ConstrainedFPI
 from ._fpi import FPI
 from ._local import LocalDeformation
@@ -14,33 +24,44 @@ from ._tps import ThinPlateSpline
 from ._transform import Compound, Transform
 
 from ._warp import map_points, warp_image
-from .backends import available_backends, backend_status
+from .backends import available_backends, backend_capabilities, backend_status
 from .batch import warp_batch, warp_images
-from .io import read_image, write_image
+from .io import ImageError, OutputExistsError, read_image, write_image
+from .positions import source_positions
 from .spec import SpecError, load_spec
 
 __version__ = "0.1.0"
 
 __all__ = [
     "FPI",
+    "ArgumentError",
+    "ArgumentTypeError",
     "BackendUnavailableError",
     "Compound",
     "ConstrainedFPI",
+    "ConstraintError",
     "DegenerateQuadError",
+    "FpiwarpError",
+    "ImageError",
     "InverseNotConvergedError",
     "LocalDeformation",
+    "MissingDependencyError",
     "Mobius",
+    "OutputExistsError",
     "RLinear",
+    "SizeLimitError",
+    "SpecError",
     "ThinPlateSpline",
     "Transform",
     "available_backends",
+    "backend_capabilities",
     "backend_status",
-    "SpecError",
     "load_spec",
     "map_points",
     "read_image",
+    "source_positions",
     "warp_batch",
+    "warp_image",
     "warp_images",
     "write_image",
-    "warp_image",
 ]

@@ -30,9 +30,9 @@ each offset point.
 
 import numpy as np
 
-from ._fpi import _centered_at_zero
+from ._errors import ArgumentTypeError, ConstraintError
 from ._linear import RLinear
-from ._mobius import Mobius, _matmul
+from ._mobius import Mobius, centered_at_zero, mobius_product
 from ._quad import check_quad_pair, parallelogram_mobius, signed_area
 from ._tps import ThinPlateSpline
 from ._transform import Transform, chain
@@ -48,9 +48,9 @@ def normalize_edges(edges):
     try:
         i, j = (int(e) for e in edges)
     except (TypeError, ValueError):
-        raise ValueError(f"edges must be two edge indices in 0..3, got {edges!r}") from None
+        raise ConstraintError(f"edges must be two edge indices in 0..3, got {edges!r}") from None
     if not (0 <= i <= 3 and 0 <= j <= 3) or i == j:
-        raise ValueError(f"edges must be two different edge indices in 0..3, got {edges!r}")
+        raise ConstraintError(f"edges must be two different edge indices in 0..3, got {edges!r}")
     if (i - j) % 4 == 2:
         return (min(i, j), max(i, j)), "opposite"
     if (j - i) % 4 == 1:
@@ -75,7 +75,7 @@ def shared_similarity(z, w, first):
     a1, _ = edge_similarity(z, w, first)
     a2, _ = edge_similarity(z, w, (first + 1) % 4)
     if abs(a1 - a2) > SIMILARITY_RTOL * max(abs(a1), abs(a2)):
-        raise ValueError(
+        raise ConstraintError(
             f"adjacent constrained edges {first} and {(first + 1) % 4} must undergo one shared "
             f"similarity, but no similarity maps src points {idx} to dst points {idx} (edge scale-"
             f"rotations {complex(a1):.6g} and {complex(a2):.6g} differ): move only the free point "
@@ -160,7 +160,7 @@ class ConstrainedFPI(Transform):
     >>> ConstrainedFPI(sq, [[0, 0], [2, 0], [2.2, 1.1], [0, 1]], edges=(0, 1))
     Traceback (most recent call last):
     ...
-    ValueError: adjacent constrained edges 0 and 1 must undergo one shared similarity, but no similarity maps src points [0, 1, 2] to dst points [0, 1, 2] (edge scale-rotations 1+0j and 1.1-0.2j differ): move only the free point 3, or constrain opposite edges
+    fpiwarp.ConstraintError: adjacent constrained edges 0 and 1 must undergo one shared similarity, but no similarity maps src points [0, 1, 2] to dst points [0, 1, 2] (edge scale-rotations 1+0j and 1.1-0.2j differ): move only the free point 3, or constrain opposite edges
     """
 
     def __init__(self, src, dst, edges, points_per_edge=10, delta=0.01):
@@ -169,7 +169,7 @@ class ConstrainedFPI(Transform):
         k = _check_points_per_edge(points_per_edge)
         delta = float(delta)
         if not (np.isfinite(delta) and delta > 0):
-            raise ValueError(f"delta must be a positive number, got {delta!r}")
+            raise ConstraintError(f"delta must be a positive number, got {delta!r}")
         if kind == "adjacent":
             shared_similarity(z, w, edges[0])  # refuse inconsistent points early
         # As for the FPI: solve counter-clockwise, mirror the parts back.
@@ -189,7 +189,7 @@ class ConstrainedFPI(Transform):
     def _init_parts(self, z, w, pre, core, post):
         self._z, self._w = z, w
         if pre.beta != 0:  # the block's pre-Möbius has no offset term
-            raise AssertionError("pre-Möbius must have beta == 0")
+            raise ConstraintError("ConstrainedFPI parts: the pre-Möbius must have beta == 0 (the block stores none)")
         self.pre, self.core, self.post = pre, core, post
 
     @classmethod
@@ -236,7 +236,7 @@ class ConstrainedFPI(Transform):
         m = as_mobius(nxt)
         if m is None:
             return None
-        post = Mobius(*_matmul(m.coefficients, self.post.coefficients), center=self.post.q)
+        post = Mobius(*mobius_product(m.coefficients, self.post.coefficients), center=self.post.q)
         if post.q != self.post.q:  # the fused pole sits at the center: keep two steps
             return None
         attrs = {k: v for k, v in self.__dict__.items() if k in ("edges", "kind", "points_per_edge", "delta")}
@@ -247,7 +247,7 @@ class ConstrainedFPI(Transform):
         inverse), post-Möbius; ``kw`` adds Stage fields (regions)."""
         p = self.pre
         pre = MobiusPart(center=p.q, inverse_pole=p.s, scale=p.alpha)
-        return self.core.stage(pre=pre, post=_centered_at_zero(self.post), **kw)
+        return self.core.stage(pre=pre, post=centered_at_zero(self.post), **kw)
 
     def stages(self):
         return [self.stage()]
@@ -270,11 +270,11 @@ def as_mobius(t):
 
 def _check_points_per_edge(k):
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-        raise TypeError(f"points_per_edge must be an int, got {type(k).__name__}")
+        raise ArgumentTypeError(f"points_per_edge must be an int, got {type(k).__name__}")
     k = int(k)
     kmax = MAX_CENTERS // 4
     if not 2 <= k <= kmax:
-        raise ValueError(
+        raise ConstraintError(
             f"points_per_edge must be in 2..{kmax}: the spline gets 4 * points_per_edge "
             f"centers and the parameter block holds at most {MAX_CENTERS}, got {k}"
         )

@@ -1,7 +1,54 @@
-"""Exceptions raised by fpiwarp, one type per kind of user mistake."""
+"""Every error fpiwarp raises on purpose, under one base: :class:`FpiwarpError`.
+
+Catch ``fpiwarp.FpiwarpError`` to handle any mistake in what was asked of
+fpiwarp (a bad argument, a degenerate quad, an unreadable image, a backend
+that cannot run here); anything else that escapes fpiwarp is a bug. Each
+class keeps the standard exception it was before as a second base
+(``ValueError``, ``TypeError``, ``RuntimeError``, ``FileExistsError``,
+``ArithmeticError``, ``ImportError``), so ``except ValueError`` still
+catches what it caught. Messages are one line naming the argument, field
+or file and the problem.
+"""
+
+import errno
+
+__all__ = [
+    "ArgumentError",
+    "ArgumentTypeError",
+    "BackendUnavailableError",
+    "ConstraintError",
+    "DegenerateQuadError",
+    "FpiwarpError",
+    "ImageError",
+    "InverseNotConvergedError",
+    "MissingDependencyError",
+    "OutputExistsError",
+    "SizeLimitError",
+    "SpecError",
+]
 
 
-class DegenerateQuadError(ValueError):
+class FpiwarpError(Exception):
+    """Base of every error fpiwarp raises on purpose: the input or the
+    environment, not fpiwarp, is at fault, and the message says how."""
+
+
+class ArgumentError(FpiwarpError, ValueError):
+    """An argument of the right type with a value fpiwarp cannot use (an
+    unknown order, mode or backend, a non-positive output size, ...)."""
+
+
+class ArgumentTypeError(FpiwarpError, TypeError):
+    """An argument of a type fpiwarp does not take (a list for an image, a
+    float for an order, a string for a map, ...)."""
+
+
+class SizeLimitError(ArgumentError):
+    """An image, output or point set beyond a limit of fpiwarp or of the
+    chosen backend; the message names the size and the limit."""
+
+
+class DegenerateQuadError(FpiwarpError, ValueError):
     """Four points that cannot define an orientation-preserving 4-point map.
 
     Raised for wrong shapes, NaN or inf, coincident points, three collinear
@@ -10,10 +57,46 @@ class DegenerateQuadError(ValueError):
     """
 
 
-class BackendUnavailableError(RuntimeError):
+class ConstraintError(FpiwarpError, ValueError):
+    """Edge constraints of a :class:`~fpiwarp.ConstrainedFPI` (or a local
+    deformation) that no map can satisfy, or options out of range."""
+
+
+class BackendUnavailableError(FpiwarpError, RuntimeError):
     """A backend was asked for that cannot run here; the message says why
     and which extra to install."""
 
 
-class InverseNotConvergedError(ArithmeticError):
+class MissingDependencyError(FpiwarpError, ImportError):
+    """An optional Python package a feature needs is not installed; the
+    message names the feature and the package to install."""
+
+
+class InverseNotConvergedError(FpiwarpError, ArithmeticError):
     """A numerical inverse did not reach its tolerance; no silent wrong answer."""
+
+
+class ImageError(FpiwarpError, ValueError):
+    """A file that is not an image fpiwarp can read, or an array that the
+    chosen format cannot store; the message names the file and the problem."""
+
+
+class OutputExistsError(FpiwarpError, FileExistsError):
+    """The output file exists and overwriting was not asked for."""
+
+    def __init__(self, path):
+        super().__init__(errno.EEXIST, "file exists", str(path))
+
+    def __str__(self):
+        return f"{self.filename} already exists (pass overwrite=True to replace it)"
+
+
+class SpecError(FpiwarpError, ValueError):
+    """An invalid spec file; the message names the file, the field and the problem."""
+
+
+# Reported as fpiwarp.Name (in tracebacks, reprs and docs), where they are
+# exported, not as this private module.
+for _cls in (globals()[_name] for _name in __all__):
+    _cls.__module__ = "fpiwarp"
+del _cls

@@ -10,6 +10,7 @@ the FPI of the swapped quads, exact and with the same K.
 import numpy as np
 
 from ._linear import RLinear
+from ._mobius import centered_at_zero
 from ._points import as_xy
 from ._quad import check_quad_pair, parallelogram_mobius
 from ._transform import Transform, chain
@@ -55,7 +56,7 @@ class FPI(Transform):
     >>> FPI([[0, 0], [1, 1], [1, 0], [0, 1]], [[0, 0], [2, 0], [2, 1], [0, 1]])
     Traceback (most recent call last):
     ...
-    fpiwarp._errors.DegenerateQuadError: src is self-intersecting (bow-tie): edge 0-1 crosses edge 2-3
+    fpiwarp.DegenerateQuadError: src is self-intersecting (bow-tie): edge 0-1 crosses edge 2-3
     """
 
     def __init__(self, src, dst):
@@ -66,7 +67,7 @@ class FPI(Transform):
             z, w = np.conj(z), np.conj(w)
         m_src = parallelogram_mobius(z)
         m_dst = parallelogram_mobius(w)
-        linear = affine_between(m_src._map(z), m_dst._map(w))
+        linear = affine_between(m_src.map_complex(z), m_dst.map_complex(w))
         if flip:
             m_src, linear, m_dst = m_src.conjugated(), linear.conjugated(), m_dst.conjugated()
             z, w = np.conj(z), np.conj(w)
@@ -120,7 +121,7 @@ class FPI(Transform):
             w = None if w is None else complex(w[0], w[1])
         else:
             with np.errstate(all="ignore"):
-                w = complex(self._m_dst_inv._map(self.linear._map(m.beta - m.alpha / m.s)))
+                w = complex(self._m_dst_inv.map_complex(self.linear.map_complex(m.beta - m.alpha / m.s)))
         size = float(np.max(np.abs(self._w - self._w.mean())))
         if w is None or not np.isfinite(w) or abs(w - self._w.mean()) > size / POLE_RTOL:
             return None
@@ -132,10 +133,10 @@ class FPI(Transform):
         return self.pole_image is None
 
     def _map(self, z):
-        return self._m_dst_inv._map(self.linear._map(self.m_src._map(z)))
+        return self._m_dst_inv.map_complex(self.linear.map_complex(self.m_src.map_complex(z)))
 
     def _wirtinger(self, z):
-        w, fz, fzb = self.m_src._wirtinger(z)
+        w, fz, fzb = self.m_src.wirtinger(z)
         w, fz, fzb = chain(self.linear, w, fz, fzb)
         return chain(self._m_dst_inv, w, fz, fzb)
 
@@ -148,19 +149,9 @@ class FPI(Transform):
         m, a, n = self.m_src, self.linear, self._m_dst_inv
         # pre: m_Z has beta = 0; post: m_W⁻¹ re-centered at 0 (its input,
         # parallelogram coordinates of unit size, lies near 0).
-        post = _centered_at_zero(n)
+        post = centered_at_zero(n)
         pre = MobiusPart(center=m.q, inverse_pole=m.s, scale=m.alpha)
         return [Stage(pre=pre, linear=LinearPart(a.l1, a.l2, a.l3), post=post)]
 
     def __repr__(self):
         return f"FPI(src={self.src.tolist()}, dst={self.dst.tolist()})"
-
-
-def _centered_at_zero(m):
-    """m as the post-Möbius part of a stage, centered at 0:
-    m(p) = offset + scale p / (1 - inverse_pole p), for m.q == 0 or any q."""
-    if m.q != 0:
-        from ._mobius import Mobius
-
-        m = Mobius(*m.coefficients, center=0)
-    return MobiusPart(inverse_pole=m.s, scale=m.alpha, offset=m.beta)

@@ -7,6 +7,7 @@ distortion is the constant K = (|l1| + |l2|) / (|l1| - |l2|).
 
 import numpy as np
 
+from ._errors import ArgumentError
 from ._transform import Transform
 from .block import LinearPart, Stage
 
@@ -20,15 +21,15 @@ class RLinear(Transform):
     >>> RLinear(1, 1, 0)
     Traceback (most recent call last):
     ...
-    ValueError: singular R-linear map: |l1| == |l2|
+    fpiwarp.ArgumentError: singular R-linear map: |l1| == |l2|
     """
 
     def __init__(self, l1, l2=0, l3=0):
         l1, l2, l3 = complex(l1), complex(l2), complex(l3)
         if not all(np.isfinite([l1.real, l1.imag, l2.real, l2.imag, l3.real, l3.imag])):
-            raise ValueError("R-linear coefficients must be finite")
+            raise ArgumentError("R-linear coefficients must be finite")
         if abs(abs(l1) - abs(l2)) <= 1e-14 * (abs(l1) + abs(l2)):
-            raise ValueError("singular R-linear map: |l1| == |l2|")
+            raise ArgumentError("singular R-linear map: |l1| == |l2|")
         self.l1, self.l2, self.l3 = l1, l2, l3
 
     @classmethod

@@ -9,6 +9,7 @@ similarity), and the inverse has the same form with
 
 import numpy as np
 
+from ._errors import ArgumentError
 from ._transform import Transform
 from .block import LinearPart, MobiusPart, Stage
 
@@ -16,7 +17,7 @@ from .block import LinearPart, MobiusPart, Stage
 def _complex(value, name):
     value = complex(value)
     if not np.isfinite(value.real) or not np.isfinite(value.imag):
-        raise ValueError(f"{name} must be finite, got {value}")
+        raise ArgumentError(f"{name} must be finite, got {value}")
     return value
 
 
@@ -32,7 +33,7 @@ class Mobius(Transform):
     >>> Mobius(1, 2, 2, 4)
     Traceback (most recent call last):
     ...
-    ValueError: Möbius coefficients need ad - bc != 0
+    fpiwarp.ArgumentError: Möbius coefficients need ad - bc != 0
     """
 
     def __init__(self, a, b, c, d, *, center=None):
@@ -40,7 +41,7 @@ class Mobius(Transform):
         det = a * d - b * c
         scale = max(abs(a * d), abs(b * c), 1e-300)
         if abs(det) <= 1e-14 * scale:
-            raise ValueError("Möbius coefficients need ad - bc != 0")
+            raise ArgumentError("Möbius coefficients need ad - bc != 0")
         q = 0j if center is None else _complex(center, "center")
         if abs(c * q + d) <= 1e-12 * (abs(c * q) + abs(d)):
             # the center sits on the pole -d/c (c != 0 here, as ad - bc != 0):
@@ -55,7 +56,7 @@ class Mobius(Transform):
         obj = cls.__new__(cls)
         alpha = _complex(alpha, "alpha")
         if alpha == 0:
-            raise ValueError("alpha must be non-zero")
+            raise ArgumentError("alpha must be non-zero")
         obj._set(_complex(q, "q"), _complex(s, "s"), alpha, _complex(beta, "beta"))
         return obj
 
@@ -67,14 +68,14 @@ class Mobius(Transform):
         z = as_complex(src, "src")
         w = as_complex(dst, "dst")
         if z.shape != (3,) or w.shape != (3,):
-            raise ValueError("from_points needs three source and three target points")
+            raise ArgumentError("from_points needs three source and three target points")
         for name, pts in (("src", z), ("dst", w)):
             if len({complex(v) for v in pts}) < 3 or not np.all(np.isfinite(pts)):
-                raise ValueError(f"from_points needs three distinct finite {name} points, got {pts}")
+                raise ArgumentError(f"from_points needs three distinct finite {name} points, got {pts}")
         # cross-ratio maps of each triple to (0, 1, inf), then compose
         mz = _to_standard(z)
         mw = _to_standard(w)
-        return Mobius(*_matmul(_inv(mw), mz), center=z.mean())
+        return Mobius(*mobius_product(_inv(mw), mz), center=z.mean())
 
     def _set(self, q, s, alpha, beta):
         self.q, self.s, self.alpha, self.beta = q, s, alpha, beta
@@ -121,7 +122,7 @@ class Mobius(Transform):
 
     def _fuse_with(self, nxt):
         if isinstance(nxt, Mobius):
-            return Mobius(*_matmul(nxt.coefficients, self.coefficients), center=self.q)
+            return Mobius(*mobius_product(nxt.coefficients, self.coefficients), center=self.q)
         return None
 
     def conjugated(self):
@@ -136,10 +137,20 @@ class Mobius(Transform):
         return f"Mobius.centered(q={self.q!r}, s={self.s!r}, alpha={self.alpha!r}, beta={self.beta!r})"
 
 
-def _matmul(m, n):
+def mobius_product(m, n):
+    """Coefficients (a, b, c, d) of the Möbius map m ∘ n, from those of m and
+    n (the product of their 2×2 coefficient matrices)."""
     a, b, c, d = m
     e, f, g, h = n
     return (a * e + b * g, a * f + b * h, c * e + d * g, c * f + d * h)
+
+
+def centered_at_zero(m):
+    """Möbius ``m`` as the post-Möbius part of a block stage, written about 0:
+    m(p) = offset + scale p / (1 - inverse_pole p), whatever its center q."""
+    if m.q != 0:
+        m = Mobius(*m.coefficients, center=0)
+    return MobiusPart(inverse_pole=m.s, scale=m.alpha, offset=m.beta)
 
 
 def _inv(m):

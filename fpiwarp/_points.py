@@ -6,6 +6,8 @@ inside the host math they are complex128 z = x + iy.
 
 import numpy as np
 
+from ._errors import ArgumentError, ArgumentTypeError
+
 
 def as_complex(points, name="points"):
     """Return a complex128 array of shape (...) from an array-like (..., 2)."""
@@ -13,11 +15,11 @@ def as_complex(points, name="points"):
     if arr.dtype == object or not (
         np.issubdtype(arr.dtype, np.number) or arr.dtype == bool
     ):
-        raise TypeError(f"{name} must be numeric, got dtype {arr.dtype}")
+        raise ArgumentTypeError(f"{name} must be numeric, got dtype {arr.dtype}")
     if np.iscomplexobj(arr):
-        raise TypeError(f"{name} must be real (x, y) pairs, not complex numbers")
+        raise ArgumentTypeError(f"{name} must be real (x, y) pairs, not complex numbers")
     if arr.ndim == 0 or arr.shape[-1] != 2:
-        raise ValueError(f"{name} must have shape (..., 2), got {arr.shape}")
+        raise ArgumentError(f"{name} must have shape (..., 2), got {arr.shape}")
     arr = arr.astype(np.float64, copy=False)
     return arr[..., 0] + 1j * arr[..., 1]
 

@@ -16,7 +16,7 @@ exactly what :func:`fpiwarp.params._tps` evaluates on the device.
 
 import numpy as np
 
-from ._errors import InverseNotConvergedError
+from ._errors import ArgumentError, InverseNotConvergedError
 from ._linear import RLinear
 from ._transform import Transform, unsolved_are_nan
 from .block import CORE_TPS, CORE_TPS_INVERSE, MAX_CENTERS, LinearPart, Stage
@@ -67,21 +67,21 @@ class ThinPlateSpline(Transform):
     >>> ThinPlateSpline.fit([0, 1, 2], [0, 1, 2])
     Traceback (most recent call last):
     ...
-    ValueError: thin-plate spline centers are collinear or coincide: the fit is singular
+    fpiwarp.ArgumentError: thin-plate spline centers are collinear or coincide: the fit is singular
     """
 
     def __init__(self, centers, weights, lam):
         self.centers = np.asarray(centers, dtype=np.complex128).reshape(-1)
         self.weights = np.asarray(weights, dtype=np.complex128).reshape(-1)
         if self.centers.shape != self.weights.shape:
-            raise ValueError("one weight per center is needed")
+            raise ArgumentError("one weight per center is needed")
         if len(self.centers) > MAX_CENTERS:
-            raise ValueError(
+            raise ArgumentError(
                 f"a thin-plate spline packs at most {MAX_CENTERS} centers, got {len(self.centers)}"
             )
         self.l1, self.l2, self.l3 = (complex(v) for v in lam)
         if abs(abs(self.l1) - abs(self.l2)) <= 1e-14 * (abs(self.l1) + abs(self.l2)):
-            raise ValueError("singular affine part of the thin-plate spline: |l1| == |l2|")
+            raise ArgumentError("singular affine part of the thin-plate spline: |l1| == |l2|")
 
     @classmethod
     def fit(cls, centers, targets):
@@ -89,12 +89,12 @@ class ThinPlateSpline(Transform):
         c = _as_complex_1d(centers, "centers")
         d = _as_complex_1d(targets, "targets")
         if c.shape != d.shape:
-            raise ValueError(f"need one target per center, got {c.shape[0]} and {d.shape[0]}")
+            raise ArgumentError(f"need one target per center, got {c.shape[0]} and {d.shape[0]}")
         n = len(c)
         if n < 3:
-            raise ValueError(f"a thin-plate spline needs at least 3 centers, got {n}")
+            raise ArgumentError(f"a thin-plate spline needs at least 3 centers, got {n}")
         if not (np.all(np.isfinite(c)) and np.all(np.isfinite(d))):
-            raise ValueError("thin-plate spline centers and targets must be finite")
+            raise ArgumentError("thin-plate spline centers and targets must be finite")
         # Solve in coordinates centered and scaled by the data: same spline
         # (the TPS is similarity invariant), better conditioned system.
         mid = c.mean()
@@ -110,15 +110,15 @@ class ThinPlateSpline(Transform):
         rhs[:n, 0], rhs[:n, 1] = d.real, d.imag
         close = r2[~np.eye(n, dtype=bool)]
         if close.size and close.min() <= 1e-24:
-            raise ValueError("thin-plate spline centers repeat: the fit is singular")
+            raise ArgumentError("thin-plate spline centers repeat: the fit is singular")
         if np.linalg.matrix_rank(a[:n, n:], tol=1e-9) < 3:
-            raise ValueError("thin-plate spline centers are collinear or coincide: the fit is singular")
+            raise ArgumentError("thin-plate spline centers are collinear or coincide: the fit is singular")
         try:
             sol = np.linalg.solve(a, rhs)
         except np.linalg.LinAlgError:
             sol = None
         if sol is None or not np.all(np.isfinite(sol)):
-            raise ValueError("thin-plate spline system is singular (repeated centers?)")
+            raise ArgumentError("thin-plate spline system is singular (repeated centers?)")
         coef = sol[:, 0] + 1j * sol[:, 1]
         b, a0, ax, ay = coef[:n], coef[n], coef[n + 1], coef[n + 2]
         # In scaled coordinates s = (p - mid) / scale: U(|s - cs|) =
@@ -340,5 +340,5 @@ def _as_complex_1d(values, name):
     if arr.ndim == 1:
         return arr.astype(np.complex128)
     if arr.ndim != 2 or arr.shape[-1] != 2:
-        raise ValueError(f"{name} must be complex (J,) or (x, y) pairs (J, 2), got shape {arr.shape}")
+        raise ArgumentError(f"{name} must be complex (J,) or (x, y) pairs (J, 2), got shape {arr.shape}")
     return arr[:, 0] + 1j * arr[:, 1]

@@ -7,13 +7,20 @@ distortion K = (|f_z| + |f_zbar|) / (|f_z| - |f_zbar|) and the dilation
 |f_zbar| / |f_z| follow for every map type alike.
 
 Composition is in mathematical order: ``(g @ f)(p) == g(f(p))``.
+
+The protocol every map implements (:class:`Transform`, an abstract base
+class): ``map_complex(z)`` and ``wirtinger(z)`` on complex arrays, the
+``inverse`` map and the ``stages()`` that kernels evaluate. Code outside a
+map's own module calls these public names only.
 """
 
+import abc
 import contextlib
 import contextvars
 
 import numpy as np
 
+from ._errors import ArgumentError, ArgumentTypeError
 from ._points import as_complex, as_xy
 from .block import pack
 
@@ -42,7 +49,7 @@ def unsolved_are_nan():
 
 def chain(outer, inner_value, inner_fz, inner_fzb):
     """Wirtinger chain rule: value and derivatives of outer ∘ inner."""
-    w, gz, gzb = outer._wirtinger(inner_value)
+    w, gz, gzb = outer.wirtinger(inner_value)
     fz = gz * inner_fz + gzb * np.conj(inner_fzb)
     fzb = gz * inner_fzb + gzb * np.conj(inner_fz)
     return w, fz, fzb
@@ -69,34 +76,53 @@ def jacobian_from_wirtinger(fz, fzb):
     return jac
 
 
-class Transform:
+class Transform(abc.ABC):
     """Base class of all maps: call, inverse, Jacobian, distortion, ``@``.
 
-    Subclasses implement ``_wirtinger(z) -> (w, f_z, f_zbar)`` on complex
-    arrays, ``_map(z)`` (value only, for speed), ``inverse`` and
-    ``stages()``, the list of parameter-block stages that the kernels
-    evaluate (see :mod:`fpiwarp.block`).
+    The protocol, on complex128 arrays z = x + iy of any shape:
+
+    * ``map_complex(z) -> w``: the map's values (inf or nan at its pole);
+    * ``wirtinger(z) -> (w, f_z, f_zbar)``: values and Wirtinger derivatives;
+    * ``inverse``: the inverse map (exact, or a numerical one that raises
+      :class:`~fpiwarp.InverseNotConvergedError` rather than answer wrongly);
+    * ``stages()``: the parameter-block stages, applied in order, that
+      evaluate the map in the kernels (see :mod:`fpiwarp.block`).
+
+    A subclass implements ``wirtinger`` (and ``map_complex`` where values
+    alone are cheaper), ``inverse`` and ``stages``. The built-in maps
+    implement the first two under the names ``_wirtinger`` and ``_map``,
+    which the public methods forward to.
     """
 
     def __call__(self, points):
         """Map (..., 2) points; float64 (..., 2) out. Points sent to infinity
         (the pole) come out as inf or nan."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            return as_xy(self._map(as_complex(points)))
+            return as_xy(self.map_complex(as_complex(points)))
+
+    def map_complex(self, z):
+        """The map's values at complex128 points ``z`` (any shape)."""
+        return self._map(z)
+
+    def wirtinger(self, z):
+        """(w, f_z, f_zbar) at complex128 points ``z``: values and Wirtinger
+        derivatives, from which the Jacobian and the distortion follow."""
+        return self._wirtinger(z)
 
     def _map(self, z):
-        return self._wirtinger(z)[0]
+        return self.wirtinger(z)[0]
 
-    def _wirtinger(self, z):  # pragma: no cover - abstract
-        raise NotImplementedError
+    def _wirtinger(self, z):
+        raise NotImplementedError(f"{type(self).__name__} does not implement wirtinger()")
 
     @property
-    def inverse(self):  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abc.abstractmethod
+    def inverse(self):
+        """The inverse map."""
 
-    def stages(self):  # pragma: no cover - abstract
+    @abc.abstractmethod
+    def stages(self):
         """Parameter-block stages, applied in order, that evaluate this map."""
-        raise NotImplementedError
 
     def params(self):
         """The flat float32 parameter block every backend reads."""
@@ -105,20 +131,20 @@ class Transform:
     def jacobian(self, points):
         """Analytic Jacobian, shape (..., 2, 2), J[..., i, j] = d f_i / d x_j."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            _, fz, fzb = self._wirtinger(as_complex(points))
+            _, fz, fzb = self.wirtinger(as_complex(points))
         return jacobian_from_wirtinger(fz, fzb)
 
     def distortion(self, points):
         """Pointwise conformal distortion K >= 1 (ratio of the Jacobian's
         singular values); inf where the map folds over."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            _, fz, fzb = self._wirtinger(as_complex(points))
+            _, fz, fzb = self.wirtinger(as_complex(points))
         return distortion_from_wirtinger(fz, fzb)
 
     def dilation_at(self, points):
         """Pointwise conformal dilation |f_zbar| / |f_z| = (K - 1) / (K + 1)."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            _, fz, fzb = self._wirtinger(as_complex(points))
+            _, fz, fzb = self.wirtinger(as_complex(points))
             return np.abs(fzb) / np.abs(fz)
 
     def __matmul__(self, other):
@@ -139,22 +165,24 @@ class Compound(Transform):
         flat = []
         for step in steps:
             if not isinstance(step, Transform):
-                raise TypeError(f"compound steps must be Transforms, got {type(step).__name__}")
+                raise ArgumentTypeError(f"compound steps must be Transforms, got {type(step).__name__}")
             flat.extend(step.steps if isinstance(step, Compound) else [step])
         if not flat:
-            raise ValueError("a compound needs at least one step")
+            raise ArgumentError("a compound needs at least one step")
         self.steps = tuple(_fuse(flat))
 
-    def _map(self, z):
+    def map_complex(self, z):
         for step in self.steps:
-            z = step._map(z)
+            z = step.map_complex(z)
         return z
 
-    def _wirtinger(self, z):
-        w, fz, fzb = self.steps[0]._wirtinger(z)
+    def wirtinger(self, z):
+        w, fz, fzb = self.steps[0].wirtinger(z)
         for step in self.steps[1:]:
             w, fz, fzb = chain(step, w, fz, fzb)
         return w, fz, fzb
+
+    _map, _wirtinger = map_complex, wirtinger  # the former names, for code written against them
 
     @property
     def inverse(self):

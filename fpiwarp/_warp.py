@@ -1,22 +1,16 @@
 """The user-facing entry points: ``warp_image`` and ``map_points``.
 
-They validate input once, then hand normalized arrays to a backend from
-:mod:`fpiwarp.backends`, so every backend sees the same contract.
+They check their arguments once in :mod:`fpiwarp.validation`, against the
+chosen backend's declared capabilities, then hand normalized arrays to the
+backend, so every backend sees the same contract.
 """
 
-import numpy as np
+from .backends import backend_capabilities, get_backend
+from .validation import check_map_size, check_point_count, check_points, check_transform, check_warp_arguments
 
-from ._sampling import DTYPES, MODES, ORDERS
-from ._transform import Transform
-from .backends import get_backend
-
-
-def _check_transform(transform):
-    if not isinstance(transform, Transform):
-        raise TypeError(
-            f"transform must be an fpiwarp map (FPI, Mobius, RLinear, ...), "
-            f"got {type(transform).__name__}"
-        )
+# Until gl.py and backends/gl_backend.py import these from fpiwarp.validation:
+from .validation import check_cval, check_image, check_output_shape  # noqa: E402, F401
+from .validation import check_transform as _check_transform  # noqa: E402, F401
 
 
 def map_points(transform, points, backend="numpy"):
@@ -24,60 +18,16 @@ def map_points(transform, points, backend="numpy"):
 
     Returns float64 (..., 2). Points sent to the pole come out non-finite.
     """
-    _check_transform(transform)
-    pts = np.asarray(points)
-    if pts.ndim == 0 or pts.shape[-1] != 2:
-        raise ValueError(f"points must have shape (..., 2), got {pts.shape}")
-    if not np.issubdtype(pts.dtype, np.number) or np.iscomplexobj(pts):
-        raise TypeError(f"points must be real numbers, got dtype {pts.dtype}")
-    return get_backend(backend).map_points(transform, pts.astype(np.float64, copy=False))
+    check_transform(transform)
+    pts = check_points(points)
+    caps = backend_capabilities(backend)
+    check_point_count(pts, caps, backend)
+    check_map_size(transform, caps, backend)
+    return get_backend(backend).map_points(transform, pts)
 
 
-def check_image(image):
-    """Validate an image; return it as (H, W, C) and whether it was 2-D."""
-    if not isinstance(image, np.ndarray):
-        raise TypeError(f"image must be a numpy array, got {type(image).__name__}")
-    if image.dtype not in DTYPES:
-        raise TypeError(
-            f"image dtype must be uint8, uint16 or float32, got {image.dtype} "
-            "(convert with image.astype(np.float32))"
-        )
-    if image.ndim not in (2, 3) or (image.ndim == 3 and not 1 <= image.shape[2] <= 4):
-        raise ValueError(f"image must be (H, W) or (H, W, C) with C in 1..4, got shape {image.shape}")
-    if image.shape[0] == 0 or image.shape[1] == 0:
-        raise ValueError(f"image is empty: shape {image.shape}")
-    if image.ndim == 2:
-        return image[:, :, None], True
-    return image, False
-
-
-def check_output_shape(output_shape, image):
-    if output_shape is None:
-        return image.shape[:2]
-    try:
-        oh, ow = output_shape
-        if int(oh) != oh or int(ow) != ow:
-            raise ValueError
-        oh, ow = int(oh), int(ow)
-    except (TypeError, ValueError):
-        raise ValueError(f"output_shape must be (rows, cols) integers, got {output_shape!r}") from None
-    if oh <= 0 or ow <= 0:
-        raise ValueError(f"output_shape must be positive, got {output_shape!r}")
-    return oh, ow
-
-
-def check_cval(cval, channels):
-    """cval as float64 (channels,): a finite number or one per channel."""
-    try:
-        arr = np.asarray(cval, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"cval must be a finite number or one per channel ({channels}), got {cval!r}") from None
-    if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != channels) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"cval must be a finite number or one per channel ({channels}), got {cval!r}")
-    return np.broadcast_to(arr, (channels,)).copy()
-
-
-def warp_image(image, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy"):
+def warp_image(image, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
+               backend_options=None):
     """Warp ``image`` by ``transform``, which maps source to output coordinates.
 
     Each output pixel samples the source at ``transform.inverse`` of its
@@ -89,23 +39,25 @@ def warp_image(image, transform, output_shape=None, *, order=1, mode="constant",
     image : ndarray, uint8, uint16 or float32, (H, W) or (H, W, C), C in 1..4
     transform : an fpiwarp map (FPI, Mobius, RLinear, Compound, ...)
     output_shape : (rows, cols), default the input's
-    order : 0 (nearest), 1 (bilinear) or 3 (cubic convolution)
+    order : 0 (nearest), 1 (bilinear) or 3 (cubic convolution); integral
+        floats such as 1.0 are taken as those integers
     mode : 'constant', 'edge', 'reflect' or 'wrap'
     cval : value (or one per channel) outside the image in 'constant' mode,
-        and wherever the source position is not finite (near the pole)
+        and wherever the source position is not finite (near the pole);
+        finite; clamped to the range of uint8/uint16 images, within ±1e38
+        for float32 images
     backend : name from :func:`fpiwarp.backends.backend_status`
+    backend_options : dict of options the backend declares (see
+        :func:`fpiwarp.backends.backend_capabilities`), e.g.
+        ``{"hardware_filter": True}`` on "gl"
 
-    Returns an array of the input's dtype and channel layout.
+    Returns an array of the input's dtype and channel layout. Sizes beyond
+    a limit (2**31 - 1 values per call, the backend's pixels per side, this
+    machine's memory) raise :class:`~fpiwarp.SizeLimitError` before any work.
     """
-    _check_transform(transform)
-    img, squeeze = check_image(image)
-    if order not in ORDERS:
-        raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-    cval = check_cval(cval, img.shape[2])
-    shape = check_output_shape(output_shape, img)
+    caps = backend_capabilities(backend)
+    args = check_warp_arguments(image, transform, output_shape, order, mode, cval, caps, backend, backend_options)
     out = get_backend(backend).warp_image(
-        np.ascontiguousarray(img), transform, shape, order=order, mode=mode, cval=cval
+        args.image, transform, args.output_shape, order=args.order, mode=args.mode, cval=args.cval, **args.options
     )
-    return out[:, :, 0] if squeeze else out
+    return out[:, :, 0] if args.squeeze else out

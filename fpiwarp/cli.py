@@ -14,34 +14,52 @@
     one frame rendered offscreen (no display needed) and written.
 
 A user's mistake (a degenerate quad, a bad spec, a missing file, an unknown
-backend, an output that exists) gives one line on stderr and exit status 1;
-Ctrl-C gives status 130. Inputs are never modified and outputs are written
-atomically, so no partial or temporary file is left behind.
+backend, an output that exists: an :class:`~fpiwarp.FpiwarpError` or an
+``OSError``) gives one line on stderr and exit status 1; a wrong command
+line status 2; Ctrl-C status 130. Any other exception is a bug in fpiwarp:
+its traceback is shown, with a line saying so, and the status is 70.
+Inputs are never modified and outputs are written atomically, so no
+partial or temporary file is left behind.
+
+``--output-shape`` is WIDTHxHEIGHT, as image sizes are usually written;
+the Python API's ``output_shape`` is (rows, cols) = (HEIGHT, WIDTH).
 """
 
 import argparse
 import os
 import re
 import sys
+import traceback
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
-from ._errors import BackendUnavailableError, InverseNotConvergedError
+from ._errors import ArgumentError, BackendUnavailableError, FpiwarpError
 from ._fpi import FPI
+from ._local import LocalDeformation
 from ._sampling import MODES, ORDERS
+from ._warp import warp_image
 from .backends import REGISTRY, backend_status
-from .io import OutputExistsError, check_writable, read_image, write_image
+from .batch import BatchSummary, Progress, list_inputs, run_batch
+from .io import ImageError, OutputExistsError, check_writable, read_image, write_image
+from .metrics import grid
+from .spec import SpecError, load_spec
 
 #: The demo's target corners, as fractions of (width - 1, height - 1); the
 #: source corners are the image's own, clockwise on screen from top left.
 DEMO_DST = ((0.18, 0.14), (0.90, 0.02), (0.98, 0.90), (0.04, 0.96))
 DEMO_OUTPUT = "warped-sample.png"
 
-#: Options whose value may start with "-" (negative coordinates).
-_NUMERIC_OPTIONS = ("--src", "--dst", "--edges", "--cval")
+#: Exit status for an exception that is not a user's mistake (EX_SOFTWARE).
+BUG_STATUS = 70
+#: Samples per side of the input image over which ``warp`` reports the
+#: largest distortion K of maps whose K is not one constant.
+K_SAMPLES = 64
+
+#: Options whose value may start with "-" (negative coordinates, a mistyped size).
+_NUMERIC_OPTIONS = ("--src", "--dst", "--edges", "--cval", "--output-shape")
 
 
 class UsageError(Exception):
@@ -93,13 +111,11 @@ def _output_shape(text):
         return None
     m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
     if not m or int(m.group(1)) == 0 or int(m.group(2)) == 0:
-        raise UsageError(f"--output-shape must be WIDTHxHEIGHT like 1920x1080, got {text!r}")
-    return int(m.group(2)), int(m.group(1))  # (rows, cols)
+        raise UsageError(f"--output-shape must be WIDTHxHEIGHT in pixels like 1920x1080, got {text!r}")
+    return int(m.group(2)), int(m.group(1))  # (rows, cols), the API's order
 
 
 def _transform_from_args(args):
-    from .spec import load_spec
-
     if args.spec is not None:
         if args.src is not None or args.dst is not None or args.edges is not None:
             raise UsageError("give either --spec or --src/--dst/--edges, not both")
@@ -109,9 +125,24 @@ def _transform_from_args(args):
     src, dst = _quad(args.src, "--src"), _quad(args.dst, "--dst")
     if args.edges is None:
         return FPI(src, dst)
-    from .spec import _local_deformation
+    edges = tuple(_edges(args.edges))
+    try:
+        return LocalDeformation(src, dst, edges=edges)
+    except FpiwarpError:
+        raise
+    except ValueError as exc:  # the local deformation's own checks of the quads
+        raise ArgumentError(f"--src/--dst/--edges: {exc}") from None
 
-    return _local_deformation()(src, dst, edges=tuple(_edges(args.edges)))
+
+def _distortion_line(transform, image):
+    """'K = ...' for ``warp``: the map's constant K, else its largest K
+    over the input image (a K_SAMPLES x K_SAMPLES grid)."""
+    k = getattr(transform, "K", None)
+    if k is not None:
+        return f"K = {float(k):.4f}"
+    h, w = image.shape[:2]
+    worst = float(transform.distortion(grid([[0, 0], [w - 1, h - 1]], n=K_SAMPLES)).max())
+    return f"K = {worst:.4f} (largest over the input image)"
 
 
 def _same_file(a, b):
@@ -141,8 +172,6 @@ def cmd_demo(args):
     src = [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]]
     dst = [[fx * (w - 1), fy * (h - 1)] for fx, fy in DEMO_DST]
     fpi = FPI(src, dst)
-    from ._warp import warp_image
-
     warped = warp_image(image, fpi, order=3, backend=args.backend)
     write_image(args.output, warped, info, overwrite=args.overwrite)
     print(f"wrote {args.output}")
@@ -160,21 +189,17 @@ def cmd_warp(args):
     _check_output(args.input, args.output, args.overwrite)
     image, info = read_image(args.input)
     check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
-    from ._warp import warp_image
-
     warped = warp_image(
         image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend
     )
     write_image(args.output, warped, info, overwrite=args.overwrite)
     print(f"wrote {args.output}")
+    print(_distortion_line(transform, image))
     return 0
 
 
 def cmd_batch(args):
     """Warp a folder; summary at the end, status 1 if any file failed."""
-    from .batch import BatchSummary, Progress, list_inputs, run_batch
-    from .spec import load_spec
-
     transform = load_spec(args.spec)
     output_shape = _output_shape(args.output_shape)
     cval = _cval(args.cval)
@@ -284,7 +309,12 @@ def _add_warp_options(p):
     p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
     p.add_argument("--mode", choices=MODES, default="constant", help="border mode (default constant)")
     p.add_argument("--cval", help="value outside the image in constant mode: V or V1,V2,... per channel")
-    p.add_argument("--output-shape", metavar="WxH", help="output size in pixels (default the input's)")
+    p.add_argument(
+        "--output-shape",
+        metavar="WxH",
+        help="output WIDTHxHEIGHT in pixels, e.g. 1920x1080 (default the input's size); note the "
+        "Python API's output_shape is (rows, cols), i.e. (HEIGHT, WIDTH)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace outputs that exist")
 
 
@@ -380,20 +410,13 @@ def _message(exc):
         return f"{exc.filename} already exists; pass --overwrite to replace it"
     if isinstance(exc, OSError) and exc.strerror and exc.filename:
         return f"{exc.strerror}: {exc.filename}"
-    if isinstance(exc, ModuleNotFoundError):
-        return f"missing Python package: {exc.name}"
     return str(exc) or type(exc).__name__
 
 
 #: Exceptions that mean the user asked for something impossible: one line.
-USER_ERRORS = (
-    UsageError,
-    ValueError,  # SpecError, DegenerateQuadError, ImageError, bad options
-    OSError,  # missing files, permissions, full disks, output exists
-    ImportError,  # an optional package (Dask) not installed
-    BackendUnavailableError,
-    InverseNotConvergedError,
-)
+#: ImageError and SpecError are listed until io.py and spec.py take them
+#: from fpiwarp._errors (where they derive from FpiwarpError).
+USER_ERRORS = (FpiwarpError, OSError, ImageError, SpecError)
 
 
 def main(argv=None):
@@ -415,3 +438,8 @@ def main(argv=None):
     except USER_ERRORS as exc:
         print(f"fpiwarp: error: {' '.join(_message(exc).split())}", file=sys.stderr)
         return 1
+    except Exception as exc:  # not the user's mistake: show where it happened
+        traceback.print_exc()
+        print(f"fpiwarp: internal error ({type(exc).__name__}): this is a bug in fpiwarp, "
+              "please report it with the traceback above", file=sys.stderr)
+        return BUG_STATUS

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._errors import ArgumentError, ArgumentTypeError
 from ._points import as_complex, as_xy
 from ._transform import Transform, distortion_from_wirtinger
 
@@ -26,10 +27,10 @@ def _derivatives(f, points, h):
     z = as_complex(points)
     if isinstance(f, Transform):
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            _, fz, fzb = f._wirtinger(z)
+            _, fz, fzb = f.wirtinger(z)
         return fz, fzb
     if not callable(f):
-        raise TypeError(f"f must be a Transform or a callable on (N, 2) points, got {type(f).__name__}")
+        raise ArgumentTypeError(f"f must be a Transform or a callable on (N, 2) points, got {type(f).__name__}")
     flat = z.reshape(-1)
     scale = max(1.0, float(np.max(np.abs(flat)))) if flat.size else 1.0
     step = h * scale
@@ -111,10 +112,10 @@ def grid(corners, n=64):
         (x0, y0), (x1, y1) = c
         c = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
     if c.shape != (4, 2):
-        raise ValueError(f"corners must be (4, 2) quad corners or (2, 2) rectangle bounds, got {c.shape}")
+        raise ArgumentError(f"corners must be (4, 2) quad corners or (2, 2) rectangle bounds, got {c.shape}")
     n = int(n)
     if n < 2:
-        raise ValueError(f"a grid needs n >= 2, got {n}")
+        raise ArgumentError(f"a grid needs n >= 2, got {n}")
     s = np.linspace(0.0, 1.0, n)[None, :, None]
     t = np.linspace(0.0, 1.0, n)[:, None, None]
     return (1 - t) * ((1 - s) * c[0] + s * c[1]) + t * ((1 - s) * c[3] + s * c[2])

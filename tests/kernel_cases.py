@@ -32,7 +32,7 @@ class Staged(Transform):
     def stages(self):
         return list(self._stages)
 
-    def _map(self, z):
+    def map_complex(self, z):
         out = evaluate(self.params(), np.stack([z.real, z.imag], axis=-1), np.float64)
         return out[..., 0] + 1j * out[..., 1]
 

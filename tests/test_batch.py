@@ -4,12 +4,16 @@ failures named)."""
 
 import hashlib
 import io as pyio
+import os
+import pickle
+import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 import fpiwarp
-from fpiwarp import io
+from fpiwarp import batch_folders, io
 from fpiwarp.batch import BatchSummary, Progress, Warper, list_inputs, run_batch, warp_batch, warp_images
 
 H, W = 24, 32
@@ -95,9 +99,9 @@ def test_a_stack_on_each_backend_matches_that_backends_warp_image(fpi, stack, an
 def test_warper_reuses_the_map_per_output_size(fpi, stack):
     warper = Warper(fpi)
     warper(stack[0])
-    first = warper.positions((H, W))
+    first = warper.bound.positions((H, W))
     warper(stack[1])
-    assert warper.positions((H, W)) is first
+    assert warper.bound.positions((H, W)) is first
     np.testing.assert_allclose(first[3, 5], fpi.inverse([[5.0, 3.0]])[0], rtol=0, atol=1e-12)
 
 
@@ -248,7 +252,7 @@ def test_dask_cluster_runs_the_same_batch(photos, tmp_path, fpi):
 
 def test_unreachable_dask_scheduler_is_a_clear_error(photos, tmp_path, fpi, monkeypatch):
     pytest.importorskip("distributed")
-    monkeypatch.setattr("fpiwarp.batch.DASK_CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr("fpiwarp.batch_dask.DASK_CONNECT_TIMEOUT", "1s")
     with pytest.raises(ConnectionError, match="cannot connect to the Dask scheduler"):
         run_batch(fpi, photos, tmp_path / "out", scheduler="tcp://127.0.0.1:9")
 
@@ -293,3 +297,84 @@ def test_output_folder_containing_the_input_folder(tmp_path):
     assert list_inputs(photos, exclude=tmp_path) == [photos / "a.png"]
     assert list_inputs(photos, "**/*", exclude=photos / "out") == [photos / "a.png"]
     assert list_inputs(photos, "**/*", exclude=tmp_path) == [photos / "a.png", photos / "out" / "b.png"]
+
+
+# --------------------------------------------------------------------------
+# Issue 12: names with newlines, stale temporary files; batching by capability
+
+
+@pytest.mark.parametrize("name", ["bad\nname.png", "tab\there.png", "cr\rname.png", "esc\x1b[31m.png"])
+def test_a_file_name_with_control_characters_keeps_one_line_per_failure(tmp_path, fpi, name):
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / name).write_bytes(b"\x89PNG\r\n\x1a\nnope")
+    (src / "other.png").write_bytes(b"not a png either")
+    summary = run_batch(fpi, src, tmp_path / "out")
+    lines = summary.report()
+    failures = [line for line in lines if line.startswith("failed: ")]
+    assert len(failures) == 2 and len(lines) == 3
+    assert all(ch.isprintable() for line in lines for ch in line)
+    assert any(repr(name)[1:-1] in line for line in failures)
+
+
+def test_stale_temporary_files_are_removed_and_recent_ones_listed(photos, tmp_path, fpi):
+    out = tmp_path / "out"
+    (out / "sub").mkdir(parents=True)
+    stale = out / "sub" / f".a_rgb.png.k1ll3d{io.TEMP_SUFFIX}"
+    recent = out / f".b_gray16.png.w0rk1n{io.TEMP_SUFFIX}"
+    kept = out / "notes.fpiwarp-tmp.txt"
+    for path in (stale, recent, kept):
+        path.write_bytes(b"partial")
+    old = time.time() - batch_folders.STALE_TEMP_SECONDS - 60
+    os.utime(stale, (old, old))
+    summary = run_batch(fpi, photos, out, pattern="*.png")
+    assert not stale.exists() and recent.exists() and kept.exists()
+    assert summary.removed_temps == [str(stale)] and summary.recent_temps == [str(recent)]
+    report = "\n".join(summary.report())
+    assert "removed 1 temporary files left by an interrupted run" in report
+    assert f"temporary file of a run in progress or just killed: {recent}" in report
+
+
+def test_a_batching_backend_gets_the_whole_stack_in_one_call(fpi, stack, monkeypatch):
+    from fpiwarp.backends import get_backend
+
+    backend = get_backend("numpy")
+    calls = []
+    original = backend.warp_batch
+
+    def counting(*args, **kwargs):
+        calls.append(args[0].shape)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(backend, "warp_batch", counting)
+    out = warp_batch(stack, fpi, order=3.0)
+    assert calls == [stack.shape]
+    np.testing.assert_array_equal(out[2], fpiwarp.warp_image(stack[2], fpi, order=3))
+
+
+def test_stack_options_are_checked_like_warp_image(fpi, stack):
+    with pytest.raises(fpiwarp.SizeLimitError):
+        warp_batch(stack, fpi, (10**7, 10**7))
+    with pytest.raises(fpiwarp.ArgumentError, match="order"):
+        warp_batch(stack, fpi, order=1.5)
+    with pytest.raises(fpiwarp.ArgumentError, match="backend_options"):
+        list(warp_images(stack, fpi, backend_options={"hardware_filter": True}))
+
+
+def test_warpers_pickle_without_their_bound_map(fpi, stack):
+    warper = Warper(fpi)
+    warper(stack[0])
+    clone = pickle.loads(pickle.dumps(warper))
+    np.testing.assert_array_equal(clone(stack[1]), warper(stack[1]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(names=st.lists(st.text(min_size=1, max_size=12), min_size=1, max_size=5),
+       reason=st.text(max_size=30))
+def test_the_failure_list_keeps_one_line_per_file_whatever_the_names(names, reason):
+    summary = BatchSummary(total=len(names))
+    for name in names:
+        summary.record("failed", f"in/{name}", f"in/{name}: {reason}")
+    lines = summary.report()
+    assert len(lines) == 1 + len(names)
+    assert all("\n" not in line and "\r" not in line and all(ch.isprintable() for ch in line) for line in lines)

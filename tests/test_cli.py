@@ -259,3 +259,68 @@ def test_backends_lists_every_backend(capsys):
     assert code == 0
     for name in ("numpy", "opencl", "warp", "gl"):
         assert re.search(rf"^{name}\s+(available|unavailable: .+)$", out, re.MULTILINE), out
+
+
+# --------------------------------------------------------------------------
+# Issue 12: limits, K, the output-shape convention
+
+
+@pytest.mark.parametrize("shape", ["100000x100000", "3000000000x1", "70000x70000"])
+@pytest.mark.parametrize("backend", ["numpy", "opencl", "warp", "gl"])
+def test_huge_output_shapes_are_one_line_naming_the_limit(image_file, tmp_path, capsys, shape, backend):
+    code, _, err = _run(capsys, "warp", image_file, tmp_path / "o.png", "--src", SRC, "--dst", DST,
+                        "--output-shape", shape, "--backend", backend)
+    line = _one_clean_line(err)
+    width, height = shape.split("x")
+    assert code == 1 and f"{height}x{width}" in line and "limit" in line
+    assert not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize("shape", ["10^12x10^12", "1e12x1e12", "-5x5", "0x10", "12x"])
+def test_malformed_output_shapes_are_one_usage_line(image_file, tmp_path, capsys, shape):
+    code, _, err = _run(capsys, "warp", image_file, tmp_path / "o.png", "--src", SRC, "--dst", DST,
+                        "--output-shape", shape)
+    assert code == 2 and "WIDTHxHEIGHT" in _one_clean_line(err)
+
+
+def test_batch_refuses_a_huge_output_shape_before_reading_files(tmp_path, rng, capsys):
+    src = tmp_path / "in"
+    src.mkdir()
+    io.write_image(src / "a.png", rng.integers(0, 256, size=(H, W), dtype=np.uint8))
+    spec = tmp_path / "w.json"
+    spec.write_text(json.dumps({"src": _quad(SRC).tolist(), "dst": _quad(DST).tolist()}))
+    code, _, err = _run(capsys, "batch", spec, src, tmp_path / "out", "--output-shape", "100000x100000")
+    assert code == 1 and "limit" in _one_clean_line(err)
+    assert not (tmp_path / "out").exists()
+
+
+def test_output_shape_is_width_by_height_and_help_says_the_api_differs(image_file, tmp_path, capsys):
+    code, _, _ = _run(capsys, "warp", image_file, tmp_path / "o.png", "--src", SRC, "--dst", DST,
+                      "--output-shape", "40x10")
+    assert code == 0 and io.read_image(tmp_path / "o.png")[0].shape[:2] == (10, 40)
+    with pytest.raises(SystemExit):
+        main(["warp", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "WIDTHxHEIGHT" in help_text and "(rows, cols), i.e. (HEIGHT, WIDTH)" in help_text
+
+
+def test_warp_reports_k_like_demo(image_file, tmp_path, capsys):
+    code, out, _ = _run(capsys, "warp", image_file, tmp_path / "o.png", "--src", SRC, "--dst", DST)
+    k = float(re.search(r"^K = ([0-9.]+)$", out, re.M).group(1))
+    assert code == 0 and k == pytest.approx(fpiwarp.FPI(_quad(SRC), _quad(DST)).K, abs=1e-4)
+
+
+def test_warp_with_edges_reports_the_largest_k_over_the_image(image_file, tmp_path, capsys):
+    dst = "0,0,31,0,34,25,-2,23"
+    code, out, _ = _run(capsys, "warp", image_file, tmp_path / "o.png", "--src", SRC, "--dst", dst, "--edges", "0,2")
+    k = float(re.search(r"^K = ([0-9.]+) \(largest over the input image\)$", out, re.M).group(1))
+    assert code == 0 and k >= 1.0
+
+
+def test_extreme_cval_on_the_command_line(image_file, tmp_path, capsys):
+    code, _, _ = _run(capsys, "warp", image_file, tmp_path / "o.png", "--src", SRC, "--dst", DST,
+                      "--cval", "3.5e38", "--order", "3")
+    assert code == 0  # clamped to 255 for this uint8 image
+    code, _, err = _run(capsys, "warp", image_file, tmp_path / "o.png", "--src", SRC, "--dst", DST,
+                        "--cval", "inf", "--overwrite")
+    assert code == 2 and "finite" in _one_clean_line(err)

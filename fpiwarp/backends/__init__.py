@@ -1,17 +1,22 @@
 """Backends by name, each reporting whether it can run here and why not.
 
 A backend module defines ``probe()``, which returns None when the backend
-can run or a one-line reason when it cannot, and ``Backend``, a class with
-``map_points(transform, points)`` and ``warp_image(image, transform,
-output_shape, order=, mode=, cval=)`` working on arrays already validated
-by :mod:`fpiwarp._warp`. Backends are imported and probed lazily, once.
+can run or a one-line reason when it cannot, and ``Backend``, a class that
+follows :class:`fpiwarp.backends.protocol.Backend` (``map_points``,
+``warp_image``, and ``warp_batch`` where it batches) working on arrays
+already validated by :mod:`fpiwarp.validation`. What each backend accepts
+is declared here, in its registry entry (:func:`backend_capabilities`),
+so that calls are checked before a backend is even imported. Backends are
+imported and probed lazily, once.
 """
 
 import importlib
 import threading
 from dataclasses import dataclass
 
-from .._errors import BackendUnavailableError
+from .._errors import ArgumentError, BackendUnavailableError
+from . import capabilities as _caps
+from .capabilities import Capabilities
 
 
 @dataclass(frozen=True)
@@ -19,18 +24,23 @@ class _Entry:
     module: str
     extra: str | None  # the pip extra that brings its Python packages
     system: str = ""  # what else it needs from the system
+    capabilities: Capabilities = Capabilities()
 
 
 REGISTRY = {
-    "numpy": _Entry("fpiwarp.backends.numpy_backend", None),
+    "numpy": _Entry("fpiwarp.backends.numpy_backend", None, capabilities=_caps.NUMPY),
     "opencl": _Entry(
-        "fpiwarp.backends.opencl_backend", "opencl", "an OpenCL driver (e.g. Debian's pocl-opencl-icd)"
+        "fpiwarp.backends.opencl_backend",
+        "opencl",
+        "an OpenCL driver (e.g. Debian's pocl-opencl-icd)",
+        capabilities=_caps.OPENCL,
     ),
-    "warp": _Entry("fpiwarp.backends.warp_backend", "warp"),
+    "warp": _Entry("fpiwarp.backends.warp_backend", "warp", capabilities=_caps.WARP),
     "gl": _Entry(
         "fpiwarp.backends.gl_backend",
         "gl",
         "an EGL/OpenGL 3.3+ driver (e.g. Debian's libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri)",
+        capabilities=_caps.GL,
     ),
 }
 
@@ -70,11 +80,24 @@ def available_backends():
     return [name for name, reason in backend_status().items() if reason is None]
 
 
+def check_backend_name(name):
+    """``name`` if it names a backend, else ArgumentError listing them."""
+    if not isinstance(name, str) or name not in REGISTRY:
+        raise ArgumentError(f"unknown backend {name!r}; choose from {sorted(REGISTRY)}")
+    return name
+
+
+def backend_capabilities(name):
+    """What backend ``name`` accepts: a :class:`~fpiwarp.backends.capabilities.Capabilities`
+    (dtypes, orders, modes, size limits, options, batching); known without
+    importing the backend."""
+    return REGISTRY[check_backend_name(name)].capabilities
+
+
 def get_backend(name):
     """The backend object for ``name``; raises BackendUnavailableError with
     the reason and the extra to install when it cannot run here."""
-    if name not in REGISTRY:
-        raise ValueError(f"unknown backend {name!r}; choose from {sorted(REGISTRY)}")
+    check_backend_name(name)
     with _lock:
         if name not in _status:
             _status[name] = _probe(name)

@@ -33,6 +33,7 @@ import threading
 import numpy as np
 
 from .. import resources
+from .._errors import SizeLimitError
 from ..block import describe
 from ..block.codegen import opencl_preamble
 from ..block.sampling_rules import MODES
@@ -230,7 +231,7 @@ class Backend:
         if n == 0:
             return out.astype(np.float64).reshape(shape)
         if n >= 2**30:
-            raise ValueError(f"at most 2**30 points per call on the opencl backend, got {n}")
+            raise SizeLimitError(f"at most 2**30 points per call on the opencl backend, got {n}")
         with self._lock:
             block, kind = self._upload_block(transform)
             kern = self.kernel("map_points", kind + self._point_options + (f"-DFW_LOCAL_X={self.local_x}",))
@@ -263,26 +264,69 @@ class Backend:
         self.queue.finish()
 
     def warp_image(self, image, transform, output_shape, *, order, mode, cval):
+        with self._lock:
+            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval)
+            job.set_map(transform)
+            job.launch()
+            return job.read()
+
+    def prepare_warp(self, image, output_shape, *, order, mode, cval):
+        """A :class:`DeviceWarp`: ``image`` uploaded and the output allocated
+        on the device, ready to warp by one map after another with the
+        kernel alone (what :meth:`warp_image` does once; benchmarks time
+        its steps). Arguments as :meth:`warp_image` receives them."""
+        return DeviceWarp(self, image, output_shape, order, mode, cval)
+
+
+class DeviceWarp:
+    """One image on the device, warped by :meth:`set_map` then :meth:`launch`.
+
+    The buffers are the backend's kept ones, so the job is valid until the
+    next call on the backend; use it from one thread.
+    """
+
+    def __init__(self, backend, image, output_shape, order, mode, cval):
+        be, cl = backend, backend._cl
         h, w, c = image.shape
         oh, ow = output_shape
         if max(h * w, oh * ow) * c >= 2**31:
-            raise ValueError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
-        out = np.empty((oh, ow, c), dtype=image.dtype)
-        cval4 = self._cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
-        with self._lock:
-            block, kind = self._upload_block(transform.inverse)
-            options = kind + sampling_options(image.dtype, c, order, mode)
-            options += (f"-DFW_LOCAL_X={self.local_x}", f"-DFW_VN={self.lanes}")
-            kern = self.kernel("warp_image", options)
-            src = self._buffer("image_in", image.nbytes + IMAGE_SLACK)
-            self._cl.enqueue_copy(self.queue, src, image)
-            if self.zero_copy:  # the kernel writes `out` itself
-                mf = self._cl.mem_flags
-                dst = self._cl.Buffer(self.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
-            else:
-                dst = self._buffer("image_out", out.nbytes)
-            kern.set_args(block, src, np.int32(w), np.int32(h), dst, np.int32(ow), np.int32(oh), cval4)
-            cols = -(-ow // self.local_x) * self.local_x
-            self._cl.enqueue_nd_range_kernel(self.queue, kern, (cols, oh), (self.local_x, 1))
-            self._read_back(dst, out)
-        return out
+            raise SizeLimitError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
+        self.backend, self.image_shape, self.output_shape = be, (h, w, c), (oh, ow)
+        self.out = np.empty((oh, ow, c), dtype=image.dtype)
+        self._cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
+        self._sampling = sampling_options(image.dtype, c, order, mode)
+        self._sampling += (f"-DFW_LOCAL_X={be.local_x}", f"-DFW_VN={be.lanes}")
+        self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
+        cl.enqueue_copy(be.queue, self._src, image)
+        if be.zero_copy:  # the kernel writes `out` itself
+            mf = cl.mem_flags
+            self._dst = cl.Buffer(be.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=self.out)
+        else:
+            self._dst = be._buffer("image_out", self.out.nbytes)
+        self._kernel = None
+
+    def set_map(self, transform):
+        """Upload the parameter block of ``transform.inverse`` (the map
+        from output to source) and select the kernel built for its kind."""
+        be = self.backend
+        (h, w, _), (oh, ow) = self.image_shape, self.output_shape
+        block, kind = be._upload_block(transform.inverse)
+        kern = be.kernel("warp_image", kind + self._sampling)
+        kern.set_args(block, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), self._cval4)
+        self._kernel = kern
+
+    def launch(self):
+        """Enqueue the kernel over the output; returns without waiting."""
+        be = self.backend
+        oh, ow = self.output_shape
+        cols = -(-ow // be.local_x) * be.local_x
+        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, (cols, oh), (be.local_x, 1))
+
+    def finish(self):
+        """Wait until the launched kernels are done."""
+        self.backend.queue.finish()
+
+    def read(self):
+        """The output as a numpy array (waits for the kernel)."""
+        self.backend._read_back(self._dst, self.out)
+        return self.out

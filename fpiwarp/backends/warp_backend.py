@@ -31,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .._errors import ArgumentError
 from ..block import MAX_ROWS, describe
 from ..block.sampling_rules import MODES
 
@@ -92,7 +93,7 @@ def _device_name(wp, device=None):
         return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
     known = [str(d) for d in wp.get_devices()]
     if name not in known:
-        raise ValueError(f"Warp device {name!r} is not available here; choose from {known}")
+        raise ArgumentError(f"Warp device {name!r} is not available here; choose from {known}")
     return name
 
 
@@ -112,7 +113,7 @@ def _thread_count(threads=None):
     except (TypeError, ValueError):
         count = 0
     if isinstance(threads, bool) or count < 1:
-        raise ValueError(f"{source} must be a positive integer, got {threads!r}")
+        raise ArgumentError(f"{source} must be a positive integer, got {threads!r}")
     return count
 
 
@@ -247,27 +248,61 @@ class Backend:
 
     def warp_image(self, image, transform, output_shape, *, order, mode, cval):
         """Backward warp: each output pixel samples the source at ``transform.inverse``."""
-        wp = self._wp
-        oh, ow = output_shape
+        with self._lock:
+            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval)
+            job.set_map(transform)
+            job.launch()
+            return job.read()
+
+    def prepare_warp(self, image, output_shape, *, order, mode, cval):
+        """A :class:`DeviceWarp`: ``image`` on the device (aliased on the
+        CPU) and the output allocated, ready to warp by one map after
+        another with the kernel alone (what :meth:`warp_image` does once;
+        benchmarks time its steps). Arguments as :meth:`warp_image` receives them."""
+        return DeviceWarp(self, image, output_shape, order, mode, cval)
+
+
+class DeviceWarp:
+    """One image on the device, warped by :meth:`set_map` then :meth:`launch`.
+
+    The buffers are the backend's kept ones (on CUDA), so the job is valid
+    until the next call on the backend; use it from one thread.
+    """
+
+    def __init__(self, backend, image, output_shape, order, mode, cval):
+        be = self.backend = backend
+        wp = be._wp
+        oh, ow = self.output_shape = output_shape
         channels = image.shape[2]
         dtype = image.dtype
         scalar = wp.dtype_from_numpy(dtype)
         cv = np.zeros(4, dtype=np.float32)
         cv[:channels] = cval
-        with self._lock:
-            blk = self._upload_block(transform.inverse)
-            src = self._to_device("image", image, scalar)
-            if self._on_cpu:
-                result = np.empty((oh, ow, channels), dtype=dtype)
-                out = wp.array(result, dtype=scalar, device="cpu", copy=False)
-            else:
-                out = self._buffer("warped", (oh, ow, channels), scalar)
-            self._launch(
-                self._k.IMAGE_KERNELS[order],
-                oh,
-                ow,
-                [blk, src, out, MODES.index(mode), wp.vec4(*cv.tolist()), _TOP[dtype]],
-            )
-            if not self._on_cpu:
-                result = out.numpy()
-        return result
+        self._src = be._to_device("image", image, scalar)
+        if be._on_cpu:
+            self._result = np.empty((oh, ow, channels), dtype=dtype)
+            self._out = wp.array(self._result, dtype=scalar, device="cpu", copy=False)
+        else:
+            self._result = None
+            self._out = be._buffer("warped", (oh, ow, channels), scalar)
+        self._kernel = be._k.IMAGE_KERNELS[order]
+        self._tail = [MODES.index(mode), wp.vec4(*cv.tolist()), _TOP[dtype]]
+        self._block = None
+
+    def set_map(self, transform):
+        """Upload the parameter block of ``transform.inverse`` (the map from
+        output to source)."""
+        self._block = self.backend._upload_block(transform.inverse)
+
+    def launch(self):
+        """Run the kernel over the output (on CUDA without waiting for it)."""
+        oh, ow = self.output_shape
+        self.backend._launch(self._kernel, oh, ow, [self._block, self._src, self._out, *self._tail])
+
+    def finish(self):
+        """Wait until the launched kernels are done."""
+        self.backend._wp.synchronize_device(self.backend.device)
+
+    def read(self):
+        """The output as a numpy array (copied back on CUDA)."""
+        return self._result if self._result is not None else self._out.numpy()

@@ -1,0 +1,66 @@
+"""One map and its warp options, ready to warp many images (:class:`Warper`).
+
+Shared by the array batches of :mod:`fpiwarp.batch` and the folder runs of
+:mod:`fpiwarp.batch_folders`: options are checked once, the map is bound
+to the backend once (see :func:`fpiwarp.backends.protocol.bind`).
+"""
+
+import numpy as np
+
+from ._errors import ArgumentError
+from .backends import backend_capabilities, get_backend
+from .backends.protocol import bind
+from .validation import (
+    check_backend_options,
+    check_output_shape,
+    check_sizes,
+    check_warp_arguments,
+    check_warp_options,
+)
+
+__all__ = ["Warper"]
+
+
+class Warper:
+    """One map and its warp options, ready to warp many images.
+
+    Options are checked once here, with the errors of
+    :func:`fpiwarp.warp_image`. Calling the warper on an image returns what
+    ``warp_image(image, transform, output_shape, ...)`` returns; the map is
+    bound to the backend once (see :mod:`fpiwarp.batch`). Picklable (for
+    Dask workers): the bound map is rebuilt where the warper is unpickled.
+    """
+
+    def __init__(self, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
+                 backend_options=None):
+        caps = backend_capabilities(backend)
+        order, mode = check_warp_options(transform, order, mode)
+        if np.ndim(cval) > 1:
+            raise ArgumentError(f"cval must be a number or one per channel, got {cval!r}")
+        self.options = check_backend_options(backend_options, caps, backend, order, mode)
+        if output_shape is not None:  # refuse a huge output before the first image is read
+            check_sizes((1, 1, 1), check_output_shape(output_shape, None), np.uint8, caps, backend)
+        get_backend(backend)  # fail now if unavailable
+        self.transform, self.output_shape = transform, output_shape
+        self.order, self.mode, self.cval, self.backend = order, mode, cval, backend
+        self.capabilities = caps
+        self._bound = None
+
+    def __getstate__(self):  # no bound map: it may hold device state
+        state = self.__dict__.copy()
+        state["_bound"] = None
+        return state
+
+    @property
+    def bound(self):
+        """The map bound to the backend (built on first use)."""
+        if self._bound is None:
+            self._bound = bind(get_backend(self.backend), self.transform)
+        return self._bound
+
+    def __call__(self, image):
+        args = check_warp_arguments(image, self.transform, self.output_shape, self.order, self.mode, self.cval,
+                                    self.capabilities, self.backend, self.options)
+        out = self.bound.warp_image(args.image, args.output_shape, order=args.order, mode=args.mode, cval=args.cval,
+                                    **args.options)
+        return out[:, :, 0] if args.squeeze else out
