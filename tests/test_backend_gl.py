@@ -292,14 +292,14 @@ def test_a_changed_map_does_not_rebuild_the_program(gl, rng):
     pts = frame_points(rng, 10)
     gl.map_points(sample_fpi(), pts)
     gl.warp_image(img, sample_fpi(), (16, 16), order=1, mode="edge", cval=np.zeros(3))
-    programs, count = dict(gl.warper._programs), gl.warper.compile_count
+    programs, count = dict(gl.warper.programs.programs), gl.warper.compile_count
     for k in range(5):  # drag one corner: new values, same kind of map
         moved = FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4 + k, 3 - k], [60, -2], [66, 50], [-3, 44]])
         gl.map_points(moved, pts)
         out = gl.warp_image(img, moved, (16, 16), order=1, mode="edge", cval=np.zeros(3))
         want, _ = reference(img, moved, (16, 16), 1, "edge", 0)
         assert_images_agree(out, want, np.uint8)
-    assert gl.warper.compile_count == count and gl.warper._programs == programs
+    assert gl.warper.compile_count == count and gl.warper.programs.programs == programs
 
 
 # --- availability --------------------------------------------------------------------------
@@ -308,12 +308,13 @@ def test_a_changed_map_does_not_rebuild_the_program(gl, rng):
 def test_probe_reports_why_without_a_driver(monkeypatch):
     pytest.importorskip("moderngl")
     from fpiwarp.backends import gl_backend
+    from fpiwarp.backends.gl import context
 
     def no_driver():
         raise RuntimeError("no OpenGL 3.3 context: egl: no display")
 
-    monkeypatch.setattr(gl_backend, "_shared", {})
-    monkeypatch.setattr(gl_backend, "create_context", no_driver)
+    monkeypatch.setattr(context, "_shared", {})
+    monkeypatch.setattr(context, "create_context", no_driver)
     assert gl_backend.probe() == "no OpenGL 3.3 context: egl: no display"
     with pytest.raises(RuntimeError, match="no display"):
         gl_backend.Backend()
@@ -402,19 +403,18 @@ def test_flat_varyings_forward_what_fits(gl):
 
 
 def _check_forwarding(warper, n):
-    from fpiwarp.backends.gl_backend import map_kind
+    from fpiwarp.backends.gl import FULLSCREEN, ProgramKey, stage_kinds
+    from fpiwarp.backends.gl.programs import flat_value_sources
 
-    kind = map_kind(_chain_of_fpis(6).params())
-    fs_defines = ("FPW_WITH_SAMPLER", "FPW_ORDER 1", "FPW_MODE 0", kind)
+    key = ProgramKey(FULLSCREEN, "warp.frag", stages=tuple(stage_kinds(_chain_of_fpis(6).params())),
+                     order=1, mode="constant")
     for slots, hot in [(warper.varying_slots, min(6, (warper.varying_slots - 1 - n) // 5)), (n + 6, 1), (n + 1, 0)]:
-        warper.varying_slots = slots
-        vs, fs = warper._flat_values("warp.frag", fs_defines[1:], fs_defines)
+        vs, fs = flat_value_sources(key, slots)
         assert ("#define FPW_HOT_STAGES" in fs) == (hot > 0)
         if hot:
             assert f"#define FPW_HOT_STAGES {hot}\n" in vs
         assert "flat in vec4 fpw_view_fpwv;" in fs
-    warper.varying_slots = n  # not even the uniforms fit: plain uniforms
-    vs, fs = warper._flat_values("warp.frag", fs_defines[1:], fs_defines)
+    vs, fs = flat_value_sources(key, n)  # not even the uniforms fit: plain uniforms
     assert "uniform vec4 fpw_view;" in fs and "FPW_FORWARD" not in vs.split("#line")[0]
 
 
@@ -443,8 +443,8 @@ def test_gather_sampling_equals_texel_fetch(gl, dtype):
                     diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
                     where = f"{channels} channels, {mode}, {type(transform).__name__}"
                     assert diff.max() <= (0.0 if exact else 1e-6 if dtype is np.float32 else 1.0), where
-        assert any("FPW_GATHER" in key[2] for key in gather._programs)
-        assert not any("FPW_GATHER" in key[2] for key in fetch._programs)
+        assert any(key.gather_channels for key in gather.programs.programs)
+        assert not any(key.gather_channels for key in fetch.programs.programs)
     finally:
         gather.release()
         fetch.release()
@@ -477,10 +477,9 @@ def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
             np.testing.assert_array_equal(
                 packed.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval),
                 direct.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval))
-        in_shader = [key for key in packed._programs if key[1] == "warp.frag" and
-                     any(d.startswith("FPW_PACK_PIXELS") for d in key[2])]
-        assert in_shader and any(key[1] == "pack_rgb.frag" for key in packed._programs)
-        assert not any("pack" in str(key) or "PACK" in str(key) for key in direct._programs)
+        in_shader = [key for key in packed.programs.programs if key.fragment == "warp.frag" and key.pack_pixels]
+        assert in_shader and any(key.fragment == "pack_rgb.frag" for key in packed.programs.programs)
+        assert not any(key.pack_pixels or key.fragment == "pack_rgb.frag" for key in direct.programs.programs)
     finally:
         for w in (packed, direct, small):
             w.release()
@@ -490,16 +489,16 @@ def test_without_rgb32ui_targets_rgb_is_read_back_directly(gl, monkeypatch):
     """GL does not require RGB32UI to be renderable: where a driver refuses
     it, 3-channel pictures are read back as RGB (slower on some drivers,
     the same picture)."""
-    from fpiwarp.backends import gl_backend
+    from fpiwarp.backends.gl import readback
 
-    assert isinstance(gl_backend._renders_rgb32ui(gl.ctx), bool)
-    monkeypatch.setattr(gl_backend, "_renders_rgb32ui", lambda ctx: False)
+    assert isinstance(readback.renders_rgb32ui(gl.ctx), bool)
+    monkeypatch.setattr(readback, "renders_rgb32ui", lambda ctx: False)
     warper = _warper()
     try:
         assert not warper.pack_rgb
         img = make_image((30, 41, 3), np.uint8)
         compare_warp(warper, img, sample_fpi(), (30, 41), 1, "constant", [1, 2, 3])
-        assert not any("PACK" in str(key) for key in warper._programs)
+        assert not any(key.pack_pixels or key.fragment == "pack_rgb.frag" for key in warper.programs.programs)
     finally:
         warper.release()
 

@@ -28,7 +28,7 @@ REGISTRY = {
     ),
     "warp": _Entry("fpiwarp.backends.warp_backend", "warp"),
     "gl": _Entry(
-        "fpiwarp.backends.gl_backend",
+        "fpiwarp.backends.gl",
         "gl",
         "an EGL/OpenGL 3.3+ driver (e.g. Debian's libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri)",
     ),
