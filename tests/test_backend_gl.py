@@ -349,6 +349,63 @@ def test_calls_from_another_thread_are_refused(gl):
     assert errors and "thread" in errors[0]
 
 
+def test_the_backend_can_be_handed_to_another_thread(gl):
+    """The shared context belongs to one thread: the owner releases it, a
+    worker claims it and warps (the same picture), the first thread is
+    refused meanwhile, and gets it back once the worker releases it."""
+    import threading
+
+    from fpiwarp.backends.gl_backend import claim_shared_context, owner_thread, release_shared_context
+
+    img = make_image((12, 16, 3), np.uint8)
+    want = fpiwarp.warp_image(img, sample_fpi(), backend="gl")
+    assert owner_thread() == threading.get_ident()
+    tried, claimed, released, handed_back = (threading.Event() for _ in range(4))
+    seen = {}
+
+    def worker():
+        try:
+            with pytest.raises(RuntimeError, match="thread"):  # not yet released by the main thread
+                claim_shared_context()
+            tried.set()
+            released.wait(30)
+            claim_shared_context()
+            seen["owner"] = owner_thread() == threading.get_ident()
+            seen["out"] = fpiwarp.warp_image(img, sample_fpi(), backend="gl")
+            claimed.set()
+            handed_back.wait(30)
+            release_shared_context()
+        except BaseException as exc:  # reported by the main thread
+            seen["error"] = exc
+        finally:
+            tried.set()
+            claimed.set()
+
+    t = threading.Thread(target=worker)
+    t.start()
+    try:
+        tried.wait(30)
+        release_shared_context()
+        assert owner_thread() is None
+        released.set()
+        claimed.wait(30)
+        assert "error" not in seen, seen.get("error")
+        assert seen["owner"]
+        np.testing.assert_array_equal(seen["out"], want)
+        with pytest.raises(RuntimeError, match="thread"):
+            fpiwarp.warp_image(img, sample_fpi(), backend="gl")
+        with pytest.raises(RuntimeError, match="thread"):
+            release_shared_context()
+    finally:
+        released.set()
+        handed_back.set()
+        t.join(30)
+    assert "error" not in seen, seen.get("error")
+    claim_shared_context()
+    assert owner_thread() == threading.get_ident()
+    np.testing.assert_array_equal(fpiwarp.warp_image(img, sample_fpi(), backend="gl"), want)
+
+
 # --- per-draw values as flat varyings; order 1 by textureGather ------------------------
 
 
