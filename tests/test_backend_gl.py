@@ -423,13 +423,15 @@ def _chain_of_fpis(n):
 
 
 def test_flat_varyings_give_the_same_pictures_as_uniforms(gl):
-    """Full-screen passes hand their uniforms and the FPI rows of up to
-    several stages to the fragment stage as flat varyings (a speed-up on
+    """Full-screen passes hand their per-draw values and the FPI rows of up
+    to several stages to the fragment stage as flat varyings (a speed-up on
     llvmpipe). Fewer slots mean fewer forwarded values, never other values:
-    plain uniforms (0 slots), uniforms only (10), all (the driver's)."""
+    plain uniforms (0 slots), per-draw values only, all (the driver's)."""
+    from fpiwarp.backends.gl import MAX_PER_DRAW
+
     img = make_image((48, 64, 3), np.uint8, seed=3)
     maps = [sample_fpi(), _chain_of_fpis(6), MAPS["compound"](), region_map()]
-    warpers = {slots: _warper() for slots in (0, 10, None)}
+    warpers = {slots: _warper() for slots in (0, MAX_PER_DRAW + 1, None)}
     for slots, warper in warpers.items():
         if slots is not None:
             warper.varying_slots = slots
@@ -446,33 +448,51 @@ def test_flat_varyings_give_the_same_pictures_as_uniforms(gl):
 
 
 def test_flat_varyings_forward_what_fits(gl):
-    from fpiwarp.backends.gl_backend import forward_uniforms, shader_source
-
-    text, defines, n = forward_uniforms(shader_source("warp.frag", ("FPW_WITH_SAMPLER", "FPW_OUT_INT")))
-    assert n >= 3 and "uniform vec4 fpw_view;" not in text and "flat in vec4 fpw_view_fpwv;" in text
-    assert "uniform sampler2D fpw_src;" in text  # samplers and blocks stay
-    assert defines[0].startswith("FPW_FORWARD_DECLS ") and "fpw_view_fpwv = fpw_view;" in defines[1]
-    warper = _warper()
-    try:
-        _check_forwarding(warper, n)
-    finally:
-        warper.release()
-
-
-def _check_forwarding(warper, n):
-    from fpiwarp.backends.gl import FULLSCREEN, ProgramKey, stage_kinds
-    from fpiwarp.backends.gl.programs import flat_value_sources
+    """The per-draw values get MAX_PER_DRAW slots, the FPI rows of as many
+    stages as the rest holds; below that budget, plain uniforms."""
+    from fpiwarp.backends.gl import FULLSCREEN, HOT_ROWS, MAX_PER_DRAW, ProgramKey, flat_value_sources, stage_kinds
 
     key = ProgramKey(FULLSCREEN, "warp.frag", stages=tuple(stage_kinds(_chain_of_fpis(6).params())),
-                     order=1, mode="constant")
-    for slots, hot in [(warper.varying_slots, min(6, (warper.varying_slots - 1 - n) // 5)), (n + 6, 1), (n + 1, 0)]:
-        vs, fs = flat_value_sources(key, slots)
-        assert ("#define FPW_HOT_STAGES" in fs) == (hot > 0)
-        if hot:
-            assert f"#define FPW_HOT_STAGES {hot}\n" in vs
-        assert "flat in vec4 fpw_view_fpwv;" in fs
-    vs, fs = flat_value_sources(key, n)  # not even the uniforms fit: plain uniforms
-    assert "uniform vec4 fpw_view;" in fs and "FPW_FORWARD" not in vs.split("#line")[0]
+                     order=1, mode="constant", source="unorm", output="int")
+    slots = gl.warper.varying_slots
+    for n_slots, hot in [(slots, min(6, (slots - 1 - MAX_PER_DRAW) // HOT_ROWS)),
+                         (MAX_PER_DRAW + 1 + HOT_ROWS, 1), (MAX_PER_DRAW + 1, 0)]:
+        vs, fs = flat_value_sources(key, n_slots)
+        for text in (vs, fs):
+            assert "#define FPW_FLAT_PER_DRAW\n" in text
+            assert ("#define FPW_HOT_STAGES" in text) == (hot > 0)
+            if hot:
+                assert f"#define FPW_HOT_STAGES {hot}\n" in text
+        gl.ctx.program(vertex_shader=vs, fragment_shader=fs).release()
+    vs, fs = flat_value_sources(key, MAX_PER_DRAW)  # not even the per-draw values fit: plain uniforms
+    assert "#define FPW_FLAT_PER_DRAW\n" not in vs + fs
+    gl.ctx.program(vertex_shader=vs, fragment_shader=fs).release()
+
+
+def test_every_per_draw_list_fits_and_declares_what_is_read(gl):
+    """Every full-screen program kind links with its per-draw values
+    forwarded (a value read but not listed in glsl/per_draw.glsl would not
+    compile; more than MAX_PER_DRAW would stop at its #error), and the
+    values reach the program under their own names."""
+    from fpiwarp.backends.gl import FULLSCREEN, ProgramKey, flat_value_sources
+
+    kinds = [dict(source="unorm", output="int"), dict(source="float", output="float"),
+             dict(source="int", output="accumulate"), dict(source="hw", output="int"),
+             dict(source="unorm", output=None, pack_pixels=4), dict(source=None, output="fill_int")]
+    keys = [ProgramKey(FULLSCREEN, "warp.frag", stages=((0, 0),), order=1, mode="constant", **k) for k in kinds]
+    keys.append(ProgramKey(FULLSCREEN, "preview.frag", stages=((0, 0),), order=1, mode="constant"))
+    keys.append(ProgramKey(FULLSCREEN, "pack_rgb.frag", pack_pixels=4, samples=False))
+    for key in keys:
+        vs, fs = flat_value_sources(key, gl.warper.varying_slots)
+        prog = gl.ctx.program(vertex_shader=vs, fragment_shader=fs)
+        try:
+            names = set(prog)
+            if key.samples:  # (a fill reads cval only: the compiler drops the rest)
+                assert "fpw_cval" in names and ("fpw_src_size" in names or key.output == "fill_int"), key
+            if key.fragment == "preview.frag":
+                assert {"fpw_view", "pv_heat", "pv_dilation"} <= names
+        finally:
+            prog.release()
 
 
 @pytest.mark.parametrize("dtype", DTYPES)

@@ -16,7 +16,7 @@ EDGE_COLOR = (0.2, 0.9, 1.0, 0.9)
 CONSTRAINED_COLOR = (1.0, 0.55, 0.0, 1.0)
 RING_COLOR = (0.0, 0.0, 0.0, 0.8)
 #: The overlay program.
-OVERLAY_PROGRAM = ProgramKey("overlay.vert", "overlay.frag")
+OVERLAY_PROGRAM = ProgramKey("overlay.vert", "overlay.frag", samples=False)
 
 
 def edge_curves(step, samples=48):

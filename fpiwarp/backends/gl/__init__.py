@@ -14,7 +14,7 @@ mirrors :func:`fpiwarp.params.evaluate` and :mod:`fpiwarp._sampling`:
   ``hardware_filter=True`` lets the texture unit filter instead (GL
   quantizes the weights). What makes it fast on Mesa's llvmpipe, which
   runs it on the CPU: per-draw values reach the fragment stage as flat
-  varyings rather than uniforms, order 1 reads one textureGather per
+  varyings rather than uniforms (listed once, in ``glsl/per_draw.glsl``), order 1 reads one textureGather per
   channel instead of a texelFetch per tap, and 3-channel pictures come
   back as packed RGB32UI texels;
 * :func:`warp_image_mesh`: the paper's own way, a triangulated grid of the
@@ -59,10 +59,12 @@ from .mesh import GL_CLIP_DISTANCE0, MeshBuffers, draw_culled_mesh, grid_mesh
 from .programs import (
     FULLSCREEN,
     HOT_ROWS,
+    MAX_PER_DRAW,
     MAX_ROWS,
     ProgramCache,
     ProgramKey,
-    forward_uniforms,
+    flat_value_sources,
+    fragment_defines,
     map_kind,
     set_uniform,
     shader_source,
@@ -72,10 +74,10 @@ from .readback import renders_rgb32ui
 from .warper import POINT_CHUNK, GLWarper
 
 __all__ = [
-    "FULLSCREEN", "GL_CLIP_DISTANCE0", "GL_REQUIRE", "HOT_ROWS", "MAX_ROWS", "POINT_CHUNK",
+    "FULLSCREEN", "GL_CLIP_DISTANCE0", "GL_REQUIRE", "HOT_ROWS", "MAX_PER_DRAW", "MAX_ROWS", "POINT_CHUNK",
     "Backend", "GLWarper", "MeshBuffers", "ProgramCache", "ProgramKey",
     "bound_framebuffer", "check_thread", "check_transform", "claim_shared_context", "constant_dilation",
-    "create_context", "draw_culled_mesh", "forward_uniforms", "grid_mesh", "is_short_map", "map_kind",
-    "owner_thread", "probe", "release_shared_context", "renders_rgb32ui", "set_uniform", "shader_source",
-    "shared_context", "stage_kinds", "stages_define", "warp_image_mesh",
+    "create_context", "draw_culled_mesh", "flat_value_sources", "fragment_defines", "grid_mesh",
+    "is_short_map", "map_kind", "owner_thread", "probe", "release_shared_context", "renders_rgb32ui",
+    "set_uniform", "shader_source", "shared_context", "stage_kinds", "stages_define", "warp_image_mesh",
 ]

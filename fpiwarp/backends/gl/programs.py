@@ -9,8 +9,9 @@ compiles each key once per context.
 
 Full-screen passes (:data:`FULLSCREEN`) hand the fragment stage its
 per-draw values as flat varyings rather than uniforms: Mesa's llvmpipe
-loads a uniform again for every pixel, a flat varying once per triangle
-(see glsl/fullscreen.vert and :func:`forward_uniforms`).
+loads a uniform again for every pixel, a flat varying once per triangle.
+Which values a program has is listed once, in glsl/per_draw.glsl; the
+host only chooses whether they are forwarded (:func:`flat_value_sources`).
 """
 
 import re
@@ -22,12 +23,16 @@ from ...resources import source
 from .kinds import stage_kinds
 
 #: The full-screen vertex shader, which forwards per-draw values to the
-#: fragment stage as flat varyings (see :func:`forward_uniforms`).
+#: fragment stage as flat varyings (see :func:`flat_value_sources`).
 FULLSCREEN = "fullscreen.vert"
 #: Rows of the parameter block (header and the largest number of stages).
 MAX_ROWS = 1 + P.MAX_STAGES * P.STAGE_ROWS
 #: Rows per stage a full-screen pass forwards: ROW_PRE .. ROW_L3, all an FPI reads.
 HOT_ROWS = P.ROW_L3 - P.ROW_PRE + 1
+#: Varying slots budgeted for the per-draw values of a full-screen pass:
+#: at least as many as any list of glsl/per_draw.glsl holds (the shader
+#: checks it: FPW_MAX_PER_DRAW).
+MAX_PER_DRAW = 10
 
 #: Source texture formats of the software sampler and the hardware filter
 #: (the ``source`` of a :class:`ProgramKey`) and their defines.
@@ -80,6 +85,9 @@ class ProgramKey:
         shader itself (4, 2, 1); 0: not packed.
     flags
         Further defines the shader files test (e.g. "PV_ALPHA").
+    samples
+        Whether the fragment stage samples the source (FPW_WITH_SAMPLER:
+        fpiwarp_map.glsl's sampler, output and per-draw values).
     varyings
         Outputs captured by transform feedback.
     """
@@ -94,6 +102,7 @@ class ProgramKey:
     output: str | None = None
     pack_pixels: int = 0
     flags: tuple = ()
+    samples: bool = True
     varyings: tuple = ()
 
     def with_changes(self, **changes):
@@ -101,9 +110,13 @@ class ProgramKey:
         return replace(self, **changes)
 
     def defines(self):
-        """The ``#define`` bodies (name and value) the shader files see,
-        before ``FPW_WITH_SAMPLER`` that the fragment stage adds."""
+        """The ``#define`` bodies (name and value) the shader files see
+        (the fragment stage adds FPW_WITH_SAMPLER: :func:`fragment_defines`).
+        ``FPW_FRAGMENT_<NAME>`` names the fragment file (warp.frag:
+        FPW_FRAGMENT_WARP) for the per-draw list of glsl/per_draw.glsl."""
         out = []
+        if self.fragment:
+            out.append("FPW_FRAGMENT_" + self.fragment.rsplit(".", 1)[0].upper())
         if self.order is not None:
             out.append(f"FPW_ORDER {self.order}")
         if self.mode is not None:
@@ -145,6 +158,7 @@ def layout_defines():
         "FPW_CORE_TPS": P.CORE_TPS,
         "FPW_COORD_LIMIT": f"{COORD_LIMIT:.1f}",
         "FPW_HOT_ROWS": HOT_ROWS,
+        "FPW_MAX_PER_DRAW": MAX_PER_DRAW,
     }
     return [f"#define {k} {v}" for k, v in consts.items()]
 
@@ -167,48 +181,27 @@ def shader_source(name, defines=()):
     return head + sep + "\n".join(lines) + "\n#line 2\n" + rest
 
 
-# A plain uniform of a fragment shader: scalar or vector (not a sampler, a
-# block or an array), one declaration per line.
-_UNIFORM_DECL = re.compile(r"^[ \t]*uniform[ \t]+(float|int|uint|[iu]?vec[234])[ \t]+(\w+)[ \t]*;.*$", re.MULTILINE)
-
-
-def forward_uniforms(fragment_text):
-    """Turn a fragment shader's plain uniforms into flat inputs.
-
-    Each ``uniform T name;`` becomes ``flat in T name_fpwv;`` with
-    ``#define name name_fpwv``, so the shader's code is unchanged. Returns
-    the new text and the defines that make :data:`FULLSCREEN` declare the
-    uniforms under their own names (the host sets them as before) and copy
-    them to those outputs: ``(text, defines, n_forwarded)``. Values are
-    passed exactly (flat, no interpolation).
-    """
-    decls = list({n: (t, n) for t, n in _UNIFORM_DECL.findall(fragment_text)}.values())  # once each (#if branches)
-    text = _UNIFORM_DECL.sub(lambda m: f"flat in {m[1]} {m[2]}_fpwv;\n#define {m[2]} {m[2]}_fpwv", fragment_text)
-    if not decls:
-        return text, (), 0
-    declare = " ".join(f"uniform {t} {n}; flat out {t} {n}_fpwv;" for t, n in decls)
-    copy = " ".join(f"{n}_fpwv = {n};" for _, n in decls)
-    return text, (f"FPW_FORWARD_DECLS {declare}", f"FPW_FORWARD {copy}"), len(decls)
+def fragment_defines(key):
+    """The defines of ``key``'s fragment stage: FPW_WITH_SAMPLER where it
+    samples (fpiwarp_map.glsl's sampler and output), then the key's."""
+    return (("FPW_WITH_SAMPLER",) if key.samples else ()) + key.defines()
 
 
 def flat_value_sources(key, varying_slots):
     """(vertex, fragment) texts of a full-screen pass whose fragment stage
-    reads its per-draw values as flat varyings (see glsl/fullscreen.vert):
-    its uniforms, and the FPI rows of as many stages as ``varying_slots``
-    (vec4 slots between the stages) hold. Plain uniforms when even the
-    first do not fit."""
-    vs_defines = key.defines()
-    fs_defines = ("FPW_WITH_SAMPLER",) + vs_defines
-    text, _, n = forward_uniforms(shader_source(key.fragment, fs_defines))
-    # a slot each, at worst, counting uniforms of inactive #if branches
-    # too (conservative); one for gl_Position
-    free = varying_slots - 1 - n
+    reads its per-draw values (the list in glsl/per_draw.glsl) as flat
+    varyings written once by glsl/fullscreen.vert, and the FPI rows of as
+    many stages as ``varying_slots`` (vec4 slots between the stages) hold
+    beside them. Plain uniforms when even the per-draw values do not fit."""
+    fs_defines = fragment_defines(key)
+    # MAX_PER_DRAW slots for the per-draw values, one for gl_Position
+    free = varying_slots - 1 - MAX_PER_DRAW
     if free < 0:
-        return shader_source(FULLSCREEN, vs_defines), shader_source(key.fragment, fs_defines)
+        return shader_source(FULLSCREEN, key.defines()), shader_source(key.fragment, fs_defines)
     hot = min(len(key.stages or ()), free // HOT_ROWS)
-    extra = (f"FPW_HOT_STAGES {hot}",) if hot else ()
-    text, forward, _ = forward_uniforms(shader_source(key.fragment, fs_defines + extra))
-    return shader_source(FULLSCREEN, vs_defines + extra + forward), text
+    extra = ("FPW_FLAT_PER_DRAW",) + ((f"FPW_HOT_STAGES {hot}",) if hot else ())
+    # both stages see the fragment's defines: they choose the per-draw list
+    return shader_source(FULLSCREEN, fs_defines + extra), shader_source(key.fragment, fs_defines + extra)
 
 
 def set_uniform(prog, name, value):
@@ -249,7 +242,7 @@ class ProgramCache:
             vs, fs = flat_value_sources(key, self.varying_slots)
         else:
             vs = shader_source(key.vertex, defines)
-            fs = shader_source(key.fragment, ("FPW_WITH_SAMPLER",) + defines) if key.fragment else None
+            fs = shader_source(key.fragment, fragment_defines(key)) if key.fragment else None
         prog = self.ctx.program(vertex_shader=vs, fragment_shader=fs, varyings=list(key.varyings))
         block = prog.get("FpiwarpParams", None)
         if block is not None:

@@ -360,7 +360,8 @@ class GLWarper:
         if c == 3 and self.pack_rgb:
             pack = self.program(ProgramKey(FULLSCREEN, "pack_rgb.frag",
                                            pack_pixels=readback.pixels_per_texel(image.dtype),
-                                           flags=("FPW_PACK_FLOAT",) if image.dtype.kind == "f" else ()))
+                                           flags=("FPW_PACK_FLOAT",) if image.dtype.kind == "f" else (),
+                                           samples=False))
             fbo.color_attachments[0].use(1)
             set_uniform(pack, "fpw_unpacked", 1)
             vao = self.fullscreen_vao(pack)
