@@ -18,8 +18,7 @@ from importlib import resources
 import numpy as np
 
 import fpiwarp
-from fpiwarp.viewer import Renderer
-from fpiwarp.viewer import Editor
+from fpiwarp.viewer import Editor, Renderer
 
 try:
     import moderngl_window as mglw

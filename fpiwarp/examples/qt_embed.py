@@ -19,8 +19,7 @@ import sys
 import numpy as np
 
 import fpiwarp
-from fpiwarp.viewer import Renderer
-from fpiwarp.viewer import Editor
+from fpiwarp.viewer import Editor, Renderer
 
 
 def _sample():

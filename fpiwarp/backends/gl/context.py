@@ -72,7 +72,7 @@ def check_thread():
         raise RuntimeError(
             "the gl backend's OpenGL context belongs to the thread that first used it; "
             "call the gl backend from that thread (e.g. the main thread), or call "
-            "fpiwarp.backends.gl_backend.release_shared_context() there to hand it over"
+            "fpiwarp.backends.gl.release_shared_context() there to hand it over"
         )
 
 
