@@ -276,18 +276,18 @@ class Renderer:
         ctx.viewport = viewport
         method = self._method()
         kind = self._upload(method)  # the block again: the buffer may have served another map
-        key = ProgramKey("mesh.vert", "preview_mesh.frag", stages=kind, order=self.order, mode=self.mode,
-                         flags=("PV_ALPHA",) if self.image.shape[2] in (2, 4) else ())
+        shading = dict(stages=kind, order=self.order, mode=self.mode,
+                       flags=("PV_ALPHA",) if self.image.shape[2] in (2, 4) else ())
         h, w, c = self.image.shape
         cval4 = display_rgba(np.broadcast_to(np.asarray(self._cval, np.float64), (c,)) / self._scale)
         bg = cval4 if self.background is None else np.resize(np.asarray(self.background, np.float64), 4)
         if method == "mesh":
-            prog = self.warper.program(key)
+            prog = self.warper.program(ProgramKey("mesh.vert", "preview_mesh.frag", **shading))
             # mesh.vert maps to the viewport from its corner: view of (0, 0, w, h)
             set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params((0, 0) + viewport[2:], y_down)))
             set_uniform(prog, "fpw_viewport", (float(viewport[2]), float(viewport[3])))
         else:
-            prog = self.warper.program(key.with_changes(vertex=FULLSCREEN, fragment="preview.frag"))
+            prog = self.warper.program(ProgramKey(FULLSCREEN, "preview.frag", **shading))
             set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params(viewport, y_down)))
         set_uniform(prog, "fpw_src_size", (w, h))
         set_uniform(prog, "fpw_cval", tuple(float(v) for v in cval4) if c in (2, 4) else (0.0, 0.0, 0.0, 0.0))
