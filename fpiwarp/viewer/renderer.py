@@ -53,7 +53,6 @@ that made it: call the renderer from that thread, with the context current.
 import moderngl
 import numpy as np
 
-from .._sampling import MODES, ORDERS
 from .._warp import check_cval, check_image
 from ..backends.gl import (
     FULLSCREEN,
@@ -61,6 +60,7 @@ from ..backends.gl import (
     MeshBuffers,
     ProgramKey,
     bound_framebuffer,
+    check_order_and_mode,
     check_transform,
     constant_dilation,
     draw_culled_mesh,
@@ -120,10 +120,7 @@ class Renderer:
     def __init__(self, ctx, *, order=1, mode="constant", cval=0.0, background=None, warper=None, method="pixel"):
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-        if order not in ORDERS:
-            raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
-        if mode not in MODES:
-            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        check_order_and_mode(order, mode)
         self.ctx = ctx
         self._owns_warper = warper is None
         self.warper = warper if warper is not None else GLWarper(ctx)

@@ -39,10 +39,12 @@ Modules, one job each:
 * :mod:`.readback` reading pixels back, packed RGB;
 * :mod:`.mesh`     the mesh path's grid and its culled, clipped draw;
 * :mod:`.targets`  textures and framebuffers reused between calls;
-* :mod:`.backend`  the registry's :class:`Backend`, :func:`warp_image_mesh`.
+* :mod:`.backend`  the registry's :class:`Backend`, :func:`warp_image_mesh`;
+* :mod:`.checks`   argument checks not offered by :mod:`fpiwarp._warp`.
 """
 
-from .backend import Backend, check_transform, warp_image_mesh
+from .backend import Backend, warp_image_mesh
+from .checks import check_order_and_mode, check_transform
 from .context import (
     GL_REQUIRE,
     bound_framebuffer,
@@ -76,8 +78,9 @@ from .warper import POINT_CHUNK, GLWarper
 __all__ = [
     "FULLSCREEN", "GL_CLIP_DISTANCE0", "GL_REQUIRE", "HOT_ROWS", "MAX_PER_DRAW", "MAX_ROWS", "POINT_CHUNK",
     "Backend", "GLWarper", "MeshBuffers", "ProgramCache", "ProgramKey",
-    "bound_framebuffer", "check_thread", "check_transform", "claim_shared_context", "constant_dilation",
-    "create_context", "draw_culled_mesh", "flat_value_sources", "fragment_defines", "grid_mesh",
-    "is_short_map", "map_kind", "owner_thread", "probe", "release_shared_context", "renders_rgb32ui",
-    "set_uniform", "shader_source", "shared_context", "stage_kinds", "stages_define", "warp_image_mesh",
+    "bound_framebuffer", "check_order_and_mode", "check_thread", "check_transform", "claim_shared_context",
+    "constant_dilation", "create_context", "draw_culled_mesh", "flat_value_sources", "fragment_defines",
+    "grid_mesh", "is_short_map", "map_kind", "owner_thread", "probe", "release_shared_context",
+    "renders_rgb32ui", "set_uniform", "shader_source", "shared_context", "stage_kinds", "stages_define",
+    "warp_image_mesh",
 ]

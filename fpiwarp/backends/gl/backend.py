@@ -2,16 +2,9 @@
 mesh path as a function of the public API (:func:`warp_image_mesh`)."""
 
 
-from ..._transform import Transform
+from .checks import check_transform
 from .context import check_thread, shared_context
 from .warper import GLWarper
-
-
-def check_transform(transform):
-    """Raise TypeError unless ``transform`` is an fpiwarp map."""
-    if not isinstance(transform, Transform):
-        raise TypeError(f"transform must be an fpiwarp map (FPI, Mobius, RLinear, ...), "
-                        f"got {type(transform).__name__}")
 
 
 class Backend:

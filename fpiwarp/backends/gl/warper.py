@@ -17,8 +17,8 @@ import moderngl
 import numpy as np
 
 from ... import params as P
-from ..._sampling import MODES, ORDERS
 from . import readback
+from .checks import check_order_and_mode
 from .context import bound_framebuffer, create_context
 from .kinds import is_short_map, stage_kinds
 from .mesh import MeshBuffers, draw_culled_mesh, grid_mesh
@@ -39,10 +39,7 @@ HW_MODES = ("constant", "edge", "wrap")
 def check_sampling(image, order, mode, cval):
     """The image as a contiguous array and cval as (C,) float64, after
     checking order and mode."""
-    if order not in ORDERS:
-        raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    check_order_and_mode(order, mode)
     c = image.shape[2]
     cval = np.zeros(c) if cval is None else np.broadcast_to(np.asarray(cval, np.float64), (c,))
     return np.ascontiguousarray(image), cval
