@@ -16,6 +16,8 @@
 //   FPW_GATHER + FPW_CHANNELS (order 1 through textureGather, see below),
 //   FPW_HOT_STAGES (rows forwarded as flat varyings, see fpw_row),
 //   FPW_ACCUMULATE / FPW_OUT_INT (the fragment output kind, see fpw_emit).
+// The per-draw values the sampler and the output read (fpw_src_size,
+// fpw_cval, ...) are declared from the list in per_draw.glsl.
 
 #ifdef FPW_GATHER
 // textureGather with a component argument (GLSL 4.00 core).
@@ -178,6 +180,9 @@ vec2 fpw_map(vec2 z) {
 }
 
 #ifdef FPW_WITH_SAMPLER
+#include "per_draw.glsl"
+FPW_DECLARE_PER_DRAW
+
 // ---- software sampling (_sampling.py) -------------------------------------
 // Integer images are integer textures read with texelFetch: weights and
 // sums are computed here in float, never by the texture unit.
@@ -199,16 +204,10 @@ vec4 fpw_fetch(ivec2 ij) { return texelFetch(fpw_src, ij, 0); }
 #define FPW_GATHER_C(uv, c) textureGather(fpw_src, uv, c)
 #endif
 
-uniform ivec2 fpw_src_size;  // (W, H) of the whole source image
-uniform vec4 fpw_cval;       // value outside ('constant' mode) and for non-finite positions
-#ifdef FPW_TILED
-// The texture holds source pixels [x0, x0 + w) × [y0, y0 + h) only: taps
-// elsewhere contribute nothing, so summing one pass per tile (additive
-// blending) gives the whole sum. The primary pass also adds cval where the
-// reference uses it, exactly once.
-uniform ivec4 fpw_tile;     // x0, y0, w, h
-uniform int fpw_primary;    // 1 in exactly one pass per output
-#endif
+// FPW_TILED: the texture holds source pixels fpw_tile = [x0, x0 + w) ×
+// [y0, y0 + h) only: taps elsewhere contribute nothing, so summing one pass
+// per tile (additive blending) gives the whole sum. The primary pass
+// (fpw_primary != 0) also adds cval where the reference uses it, exactly once.
 
 vec4 fpw_cval_term() {
 #ifdef FPW_TILED
@@ -263,7 +262,6 @@ vec4 fpw_cubic_weights(float t) {
 // (nearest or linear, border by the sampler object). GL quantizes the
 // bilinear weights (often to 8 bits), so results differ slightly from the
 // reference; non-finite positions still give cval.
-uniform float fpw_hw_scale;  // 255, 65535 or 1: back from normalized values
 vec4 fpw_sample(vec2 pos) {
     if (!fpw_in_range(pos)) return fpw_cval;
     pos = clamp(pos, vec2(-FPW_COORD_LIMIT), vec2(FPW_COORD_LIMIT));
@@ -408,7 +406,6 @@ void fpw_emit(vec4 v) {
 #elif defined(FPW_PACK_PIXELS)
 #include "pack.glsl"
 layout(location = 0) out uvec3 fpw_packed;
-uniform float fpw_top;
 // One output pixel's three channels as they are stored: rounded integers,
 // or a float's bits.
 uvec3 fpw_stored(vec2 xy) {
@@ -432,11 +429,9 @@ void fpw_emit_packed(vec2 xy, float dx) {
 }
 #elif defined(FPW_OUT_INT)
 layout(location = 0) out uvec4 fpw_frag;
-uniform float fpw_top;
 void fpw_emit(vec4 v) { fpw_frag = fpw_round(v, fpw_top); }
 #else
 layout(location = 0) out vec4 fpw_frag;
-uniform float fpw_out_scale;
 void fpw_emit(vec4 v) { fpw_frag = v * fpw_out_scale; }
 #endif
 #endif  // FPW_WITH_SAMPLER

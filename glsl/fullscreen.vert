@@ -8,18 +8,17 @@
 // which makes a 4K warp about twice as fast there; GPUs do not care.
 //   FPW_HOT_STAGES: rows FPW_ROW_PRE .. FPW_ROW_PRE + FPW_HOT_ROWS - 1 of the
 //     first FPW_HOT_STAGES stages of the block (fpw_row in fpiwarp_map.glsl);
-//   FPW_FORWARD_DECLS / FPW_FORWARD: the fragment shader's own uniforms,
-//     declared here under their names and copied to flat outputs
-//     (gl_backend.forward_uniforms rewrites the fragment shader to match).
+//   FPW_FLAT_PER_DRAW: the per-draw values of the fragment program (the
+//     list in per_draw.glsl), declared here as uniforms under their names
+//     and copied into the flat members of the block FpwPerDraw.
 #ifdef FPW_HOT_STAGES
 layout(std140) uniform FpiwarpParams {
     vec4 fpw_rows[FPW_MAX_ROWS];
 };
 flat out vec4 fpw_hot[FPW_HOT_ROWS * FPW_HOT_STAGES];
 #endif
-#ifdef FPW_FORWARD_DECLS
-FPW_FORWARD_DECLS
-#endif
+#include "per_draw.glsl"
+FPW_FORWARD_PER_DRAW_DECLS
 
 void main() {
     vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
@@ -31,7 +30,5 @@ void main() {
         }
     }
 #endif
-#ifdef FPW_FORWARD
-    FPW_FORWARD
-#endif
+    FPW_FORWARD_PER_DRAW
 }

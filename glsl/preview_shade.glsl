@@ -11,13 +11,9 @@
 // The source texture is normalized (uint8 / 255, uint16 / 65535) or float;
 // the host scales cval alike, and the output is written as is.
 
-uniform vec4 fpw_view;        // out = view.xy + view.zw * (gl_FragCoord.xy - 0.5), as in warp.frag
-uniform vec4 pv_background;   // shown where the source is not (sources without alpha)
-uniform float pv_checker;     // checkerboard cell in source pixels; 0: off
-uniform float pv_checker_mix; // its opacity
-uniform float pv_heat;        // heat-map opacity; 0: off
-uniform float pv_heat_max;    // dilation shown dark red
-uniform float pv_dilation;    // >= 0: the map's constant dilation (an FPI); < 0: per pixel
+// Its per-draw values (fpw_view, pv_background, pv_checker,
+// pv_checker_mix, pv_heat, pv_heat_max, pv_dilation: see per_draw.glsl)
+// are declared by fpiwarp_map.glsl (FPW_FRAGMENT_PREVIEW*).
 
 // The "jet" colour scale of the paper's figures: dark blue, blue, cyan,
 // yellow, red, dark red for t from 0 to 1.

@@ -10,7 +10,8 @@
 // center on an integer. With view = (x0, y0, 1, 1) window row j is output
 // row y0 + j, so glReadPixels (bottom row first) returns rows top-down in
 // image order; a viewer drawing to a y-up screen passes a negative view.w.
-uniform vec4 fpw_view;
+// (fpw_view is a per-draw value, declared by fpiwarp_map.glsl from the
+// list in per_draw.glsl.)
 
 void main() {
 #if defined(FPW_PACK_PIXELS)

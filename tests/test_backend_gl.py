@@ -292,14 +292,14 @@ def test_a_changed_map_does_not_rebuild_the_program(gl, rng):
     pts = frame_points(rng, 10)
     gl.map_points(sample_fpi(), pts)
     gl.warp_image(img, sample_fpi(), (16, 16), order=1, mode="edge", cval=np.zeros(3))
-    programs, count = dict(gl.warper._programs), gl.warper.compile_count
+    programs, count = dict(gl.warper.programs.programs), gl.warper.compile_count
     for k in range(5):  # drag one corner: new values, same kind of map
         moved = FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4 + k, 3 - k], [60, -2], [66, 50], [-3, 44]])
         gl.map_points(moved, pts)
         out = gl.warp_image(img, moved, (16, 16), order=1, mode="edge", cval=np.zeros(3))
         want, _ = reference(img, moved, (16, 16), 1, "edge", 0)
         assert_images_agree(out, want, np.uint8)
-    assert gl.warper.compile_count == count and gl.warper._programs == programs
+    assert gl.warper.compile_count == count and gl.warper.programs.programs == programs
 
 
 # --- availability --------------------------------------------------------------------------
@@ -308,12 +308,13 @@ def test_a_changed_map_does_not_rebuild_the_program(gl, rng):
 def test_probe_reports_why_without_a_driver(monkeypatch):
     pytest.importorskip("moderngl")
     from fpiwarp.backends import gl_backend
+    from fpiwarp.backends.gl import context
 
     def no_driver():
         raise RuntimeError("no OpenGL 3.3 context: egl: no display")
 
-    monkeypatch.setattr(gl_backend, "_shared", {})
-    monkeypatch.setattr(gl_backend, "create_context", no_driver)
+    monkeypatch.setattr(context, "_shared", {})
+    monkeypatch.setattr(context, "create_context", no_driver)
     assert gl_backend.probe() == "no OpenGL 3.3 context: egl: no display"
     with pytest.raises(RuntimeError, match="no display"):
         gl_backend.Backend()
@@ -348,6 +349,63 @@ def test_calls_from_another_thread_are_refused(gl):
     assert errors and "thread" in errors[0]
 
 
+def test_the_backend_can_be_handed_to_another_thread(gl):
+    """The shared context belongs to one thread: the owner releases it, a
+    worker claims it and warps (the same picture), the first thread is
+    refused meanwhile, and gets it back once the worker releases it."""
+    import threading
+
+    from fpiwarp.backends.gl_backend import claim_shared_context, owner_thread, release_shared_context
+
+    img = make_image((12, 16, 3), np.uint8)
+    want = fpiwarp.warp_image(img, sample_fpi(), backend="gl")
+    assert owner_thread() == threading.get_ident()
+    tried, claimed, released, handed_back = (threading.Event() for _ in range(4))
+    seen = {}
+
+    def worker():
+        try:
+            with pytest.raises(RuntimeError, match="thread"):  # not yet released by the main thread
+                claim_shared_context()
+            tried.set()
+            released.wait(30)
+            claim_shared_context()
+            seen["owner"] = owner_thread() == threading.get_ident()
+            seen["out"] = fpiwarp.warp_image(img, sample_fpi(), backend="gl")
+            claimed.set()
+            handed_back.wait(30)
+            release_shared_context()
+        except BaseException as exc:  # reported by the main thread
+            seen["error"] = exc
+        finally:
+            tried.set()
+            claimed.set()
+
+    t = threading.Thread(target=worker)
+    t.start()
+    try:
+        tried.wait(30)
+        release_shared_context()
+        assert owner_thread() is None
+        released.set()
+        claimed.wait(30)
+        assert "error" not in seen, seen.get("error")
+        assert seen["owner"]
+        np.testing.assert_array_equal(seen["out"], want)
+        with pytest.raises(RuntimeError, match="thread"):
+            fpiwarp.warp_image(img, sample_fpi(), backend="gl")
+        with pytest.raises(RuntimeError, match="thread"):
+            release_shared_context()
+    finally:
+        released.set()
+        handed_back.set()
+        t.join(30)
+    assert "error" not in seen, seen.get("error")
+    claim_shared_context()
+    assert owner_thread() == threading.get_ident()
+    np.testing.assert_array_equal(fpiwarp.warp_image(img, sample_fpi(), backend="gl"), want)
+
+
 # --- per-draw values as flat varyings; order 1 by textureGather ------------------------
 
 
@@ -365,13 +423,15 @@ def _chain_of_fpis(n):
 
 
 def test_flat_varyings_give_the_same_pictures_as_uniforms(gl):
-    """Full-screen passes hand their uniforms and the FPI rows of up to
-    several stages to the fragment stage as flat varyings (a speed-up on
+    """Full-screen passes hand their per-draw values and the FPI rows of up
+    to several stages to the fragment stage as flat varyings (a speed-up on
     llvmpipe). Fewer slots mean fewer forwarded values, never other values:
-    plain uniforms (0 slots), uniforms only (10), all (the driver's)."""
+    plain uniforms (0 slots), per-draw values only, all (the driver's)."""
+    from fpiwarp.backends.gl import MAX_PER_DRAW
+
     img = make_image((48, 64, 3), np.uint8, seed=3)
     maps = [sample_fpi(), _chain_of_fpis(6), MAPS["compound"](), region_map()]
-    warpers = {slots: _warper() for slots in (0, 10, None)}
+    warpers = {slots: _warper() for slots in (0, MAX_PER_DRAW + 1, None)}
     for slots, warper in warpers.items():
         if slots is not None:
             warper.varying_slots = slots
@@ -388,34 +448,51 @@ def test_flat_varyings_give_the_same_pictures_as_uniforms(gl):
 
 
 def test_flat_varyings_forward_what_fits(gl):
-    from fpiwarp.backends.gl_backend import forward_uniforms, shader_source
+    """The per-draw values get MAX_PER_DRAW slots, the FPI rows of as many
+    stages as the rest holds; below that budget, plain uniforms."""
+    from fpiwarp.backends.gl import FULLSCREEN, HOT_ROWS, MAX_PER_DRAW, ProgramKey, flat_value_sources, stage_kinds
 
-    text, defines, n = forward_uniforms(shader_source("warp.frag", ("FPW_WITH_SAMPLER", "FPW_OUT_INT")))
-    assert n >= 3 and "uniform vec4 fpw_view;" not in text and "flat in vec4 fpw_view_fpwv;" in text
-    assert "uniform sampler2D fpw_src;" in text  # samplers and blocks stay
-    assert defines[0].startswith("FPW_FORWARD_DECLS ") and "fpw_view_fpwv = fpw_view;" in defines[1]
-    warper = _warper()
-    try:
-        _check_forwarding(warper, n)
-    finally:
-        warper.release()
+    key = ProgramKey(FULLSCREEN, "warp.frag", stages=tuple(stage_kinds(_chain_of_fpis(6).params())),
+                     order=1, mode="constant", source="unorm", output="int")
+    slots = gl.warper.varying_slots
+    for n_slots, hot in [(slots, min(6, (slots - 1 - MAX_PER_DRAW) // HOT_ROWS)),
+                         (MAX_PER_DRAW + 1 + HOT_ROWS, 1), (MAX_PER_DRAW + 1, 0)]:
+        vs, fs = flat_value_sources(key, n_slots)
+        for text in (vs, fs):
+            assert "#define FPW_FLAT_PER_DRAW\n" in text
+            assert ("#define FPW_HOT_STAGES" in text) == (hot > 0)
+            if hot:
+                assert f"#define FPW_HOT_STAGES {hot}\n" in text
+        gl.ctx.program(vertex_shader=vs, fragment_shader=fs).release()
+    vs, fs = flat_value_sources(key, MAX_PER_DRAW)  # not even the per-draw values fit: plain uniforms
+    assert "#define FPW_FLAT_PER_DRAW\n" not in vs + fs
+    gl.ctx.program(vertex_shader=vs, fragment_shader=fs).release()
 
 
-def _check_forwarding(warper, n):
-    from fpiwarp.backends.gl_backend import map_kind
+def test_every_per_draw_list_fits_and_declares_what_is_read(gl):
+    """Every full-screen program kind links with its per-draw values
+    forwarded (a value read but not listed in glsl/per_draw.glsl would not
+    compile; more than MAX_PER_DRAW would stop at its #error), and the
+    values reach the program under their own names."""
+    from fpiwarp.backends.gl import FULLSCREEN, ProgramKey, flat_value_sources
 
-    kind = map_kind(_chain_of_fpis(6).params())
-    fs_defines = ("FPW_WITH_SAMPLER", "FPW_ORDER 1", "FPW_MODE 0", kind)
-    for slots, hot in [(warper.varying_slots, min(6, (warper.varying_slots - 1 - n) // 5)), (n + 6, 1), (n + 1, 0)]:
-        warper.varying_slots = slots
-        vs, fs = warper._flat_values("warp.frag", fs_defines[1:], fs_defines)
-        assert ("#define FPW_HOT_STAGES" in fs) == (hot > 0)
-        if hot:
-            assert f"#define FPW_HOT_STAGES {hot}\n" in vs
-        assert "flat in vec4 fpw_view_fpwv;" in fs
-    warper.varying_slots = n  # not even the uniforms fit: plain uniforms
-    vs, fs = warper._flat_values("warp.frag", fs_defines[1:], fs_defines)
-    assert "uniform vec4 fpw_view;" in fs and "FPW_FORWARD" not in vs.split("#line")[0]
+    kinds = [dict(source="unorm", output="int"), dict(source="float", output="float"),
+             dict(source="int", output="accumulate"), dict(source="hw", output="int"),
+             dict(source="unorm", output=None, pack_pixels=4), dict(source=None, output="fill_int")]
+    keys = [ProgramKey(FULLSCREEN, "warp.frag", stages=((0, 0),), order=1, mode="constant", **k) for k in kinds]
+    keys.append(ProgramKey(FULLSCREEN, "preview.frag", stages=((0, 0),), order=1, mode="constant"))
+    keys.append(ProgramKey(FULLSCREEN, "pack_rgb.frag", pack_pixels=4, samples=False))
+    for key in keys:
+        vs, fs = flat_value_sources(key, gl.warper.varying_slots)
+        prog = gl.ctx.program(vertex_shader=vs, fragment_shader=fs)
+        try:
+            names = set(prog)
+            if key.samples:  # (a fill reads cval only: the compiler drops the rest)
+                assert "fpw_cval" in names and ("fpw_src_size" in names or key.output == "fill_int"), key
+            if key.fragment == "preview.frag":
+                assert {"fpw_view", "pv_heat", "pv_dilation"} <= names
+        finally:
+            prog.release()
 
 
 @pytest.mark.parametrize("dtype", DTYPES)
@@ -443,8 +520,8 @@ def test_gather_sampling_equals_texel_fetch(gl, dtype):
                     diff = np.abs(a.astype(np.float64) - b.astype(np.float64))
                     where = f"{channels} channels, {mode}, {type(transform).__name__}"
                     assert diff.max() <= (0.0 if exact else 1e-6 if dtype is np.float32 else 1.0), where
-        assert any("FPW_GATHER" in key[2] for key in gather._programs)
-        assert not any("FPW_GATHER" in key[2] for key in fetch._programs)
+        assert any(key.gather_channels for key in gather.programs.programs)
+        assert not any(key.gather_channels for key in fetch.programs.programs)
     finally:
         gather.release()
         fetch.release()
@@ -477,10 +554,9 @@ def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
             np.testing.assert_array_equal(
                 packed.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval),
                 direct.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval))
-        in_shader = [key for key in packed._programs if key[1] == "warp.frag" and
-                     any(d.startswith("FPW_PACK_PIXELS") for d in key[2])]
-        assert in_shader and any(key[1] == "pack_rgb.frag" for key in packed._programs)
-        assert not any("pack" in str(key) or "PACK" in str(key) for key in direct._programs)
+        in_shader = [key for key in packed.programs.programs if key.fragment == "warp.frag" and key.pack_pixels]
+        assert in_shader and any(key.fragment == "pack_rgb.frag" for key in packed.programs.programs)
+        assert not any(key.pack_pixels or key.fragment == "pack_rgb.frag" for key in direct.programs.programs)
     finally:
         for w in (packed, direct, small):
             w.release()
@@ -490,16 +566,16 @@ def test_without_rgb32ui_targets_rgb_is_read_back_directly(gl, monkeypatch):
     """GL does not require RGB32UI to be renderable: where a driver refuses
     it, 3-channel pictures are read back as RGB (slower on some drivers,
     the same picture)."""
-    from fpiwarp.backends import gl_backend
+    from fpiwarp.backends.gl import readback
 
-    assert isinstance(gl_backend._renders_rgb32ui(gl.ctx), bool)
-    monkeypatch.setattr(gl_backend, "_renders_rgb32ui", lambda ctx: False)
+    assert isinstance(readback.renders_rgb32ui(gl.ctx), bool)
+    monkeypatch.setattr(readback, "renders_rgb32ui", lambda ctx: False)
     warper = _warper()
     try:
         assert not warper.pack_rgb
         img = make_image((30, 41, 3), np.uint8)
         compare_warp(warper, img, sample_fpi(), (30, 41), 1, "constant", [1, 2, 3])
-        assert not any("PACK" in str(key) for key in warper._programs)
+        assert not any(key.pack_pixels or key.fragment == "pack_rgb.frag" for key in warper.programs.programs)
     finally:
         warper.release()
 

@@ -37,7 +37,7 @@ REGISTRY = {
     ),
     "warp": _Entry("fpiwarp.backends.warp_backend", "warp", capabilities=_caps.WARP),
     "gl": _Entry(
-        "fpiwarp.backends.gl_backend",
+        "fpiwarp.backends.gl",
         "gl",
         "an EGL/OpenGL 3.3+ driver (e.g. Debian's libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri)",
         capabilities=_caps.GL,

@@ -2,7 +2,7 @@
 
 The application owns the window and the loop; the renderer draws the
 warped sample picture into the window's framebuffer every frame, and the
-mouse drags the target points (through :class:`fpiwarp.preview.Editor`).
+mouse drags the target points (through :class:`fpiwarp.viewer.Editor`).
 
     python -m fpiwarp.examples.mglw_embed                  # a window (pyglet)
     python -m fpiwarp.examples.mglw_embed --frames 1 --screenshot out.png
@@ -18,8 +18,7 @@ from importlib import resources
 import numpy as np
 
 import fpiwarp
-from fpiwarp.gl import Renderer
-from fpiwarp.preview import Editor
+from fpiwarp.viewer import Editor, Renderer
 
 try:
     import moderngl_window as mglw

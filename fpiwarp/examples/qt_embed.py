@@ -3,7 +3,7 @@
 Qt owns the window, the GL context and the event loop; in ``paintGL`` the
 renderer draws the warped sample picture into the widget's framebuffer,
 and mouse events drag the target points (through
-:class:`fpiwarp.preview.Editor`).
+:class:`fpiwarp.viewer.Editor`).
 
     python -m fpiwarp.examples.qt_embed                    # a window
     python -m fpiwarp.examples.qt_embed --frames 1 --screenshot out.png
@@ -19,8 +19,7 @@ import sys
 import numpy as np
 
 import fpiwarp
-from fpiwarp.gl import Renderer
-from fpiwarp.preview import Editor
+from fpiwarp.viewer import Editor, Renderer
 
 
 def _sample():

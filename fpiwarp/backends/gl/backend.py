@@ -1,0 +1,71 @@
+"""The registry's "gl" backend on the shared headless context, and the
+mesh path as a function of the public API (:func:`warp_image_mesh`)."""
+
+
+from .checks import check_transform
+from .context import check_thread, shared_context
+from .warper import GLWarper
+
+
+class Backend:
+    """The registry's "gl" backend on the shared headless context.
+
+    Its warper follows the shared context: after
+    :func:`~fpiwarp.backends.gl.context.release_shared_context` the next
+    call makes a new warper in the new context (in the thread that makes it).
+    """
+
+    name = "gl"
+
+    def __init__(self, max_texture_size=None):
+        self.max_texture_size = max_texture_size
+        self._warper = None
+        shared_context()  # fail here, not at the first warp, without a driver
+
+    @property
+    def warper(self):
+        """The :class:`GLWarper` of the current shared context (made on
+        first use, in the thread that owns the context)."""
+        ctx = shared_context()
+        if self._warper is None or self._warper.ctx is not ctx:
+            check_thread()
+            self._warper = GLWarper(ctx, max_texture_size=self.max_texture_size)
+        return self._warper
+
+    @property
+    def ctx(self):
+        return self.warper.ctx
+
+    def map_points(self, transform, points):
+        check_thread()
+        return self.warper.map_points(transform, points)
+
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval, hardware_filter=False):
+        check_thread()
+        return self.warper.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
+                                      hardware_filter=hardware_filter)
+
+
+def warp_image_mesh(image, transform, output_shape=None, *, order=1, mode="constant", cval=0,
+                    grid_step=4.0, vertices=None, triangles=None):
+    """Warp ``image`` by ``transform`` (source -> output) on the GL backend
+    by the mesh path: see :meth:`GLWarper.warp_image_mesh`.
+
+    Accepts what :func:`fpiwarp.warp_image` accepts; returns the same
+    dtype and channel layout.
+    """
+    from ..._warp import check_cval, check_image, check_output_shape
+    from .. import get_backend
+
+    check_transform(transform)
+    img, squeeze = check_image(image)
+    cval = check_cval(cval, img.shape[2])
+    shape = check_output_shape(output_shape, img)
+    backend = get_backend("gl")
+    check_thread()
+    out = backend.warper.warp_image_mesh(
+        img, transform, shape, order=order, mode=mode, cval=cval, grid_step=grid_step,
+        vertices=vertices, triangles=triangles)
+    return out[:, :, 0] if squeeze else out
+
+
