@@ -8,9 +8,6 @@ backend, so every backend sees the same contract.
 from .backends import backend_capabilities, get_backend
 from .validation import check_map_size, check_point_count, check_points, check_transform, check_warp_arguments
 
-# Until gl.py and backends/gl_backend.py import these from fpiwarp.validation:
-from .validation import check_cval, check_image, check_output_shape  # noqa: E402, F401
-from .validation import check_transform as _check_transform  # noqa: E402, F401
 
 
 def map_points(transform, points, backend="numpy"):

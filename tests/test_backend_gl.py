@@ -594,3 +594,23 @@ def test_a_warp_leaves_the_callers_framebuffer_bound(gl):
     finally:
         ctx.detect_framebuffer(0).use()
         mine.release()
+
+
+def test_unknown_core_is_refused_by_the_host_and_outside_in_the_shader(gl_backend, monkeypatch):
+    from fpiwarp.backends import gl as glb
+    from fpiwarp.backends.gl import warper as gl_warper
+    from fpiwarp.block import ROW_HEADER, BlockKind, StageKind
+
+    block = FPI([[0, 0], [9, 0], [9, 7], [0, 7]], [[1, 0], [9, 1], [8, 7], [0, 6]]).params().copy()
+    block[1 + ROW_HEADER, 0] = 7
+
+    class RawBlock:
+        def params(self):
+            return block
+
+    pts = np.array([[1.0, 2.0], [3.5, 4.0], [8.0, 0.5]])
+    with pytest.raises(ValueError, match="unknown core 7"):
+        glb.GLWarper(glb.shared_context(), specialize=False).map_points(RawBlock(), pts)
+    fake = BlockKind(stages=(StageKind(7, 0, 0, 0),), is_short=False, constant_dilation=None)
+    monkeypatch.setattr(gl_warper, "describe", lambda b: fake)  # a host without the check
+    assert np.isnan(glb.GLWarper(glb.shared_context(), specialize=False).map_points(RawBlock(), pts)).all()

@@ -222,7 +222,8 @@ def test_opencl_sources_use_only_generated_contract_names():
 def test_every_core_has_its_own_branch_in_every_kernel():
     """No core is an implicit `else`: each kernel names every core of the
     contract and gives anything else NaN ("outside")."""
-    for kind, name, prefix in (("kernels", "fpiwarp_map.h", "FW_"), ("kernels", "warp_map.py", "")):
+    for kind, name, prefix in (("kernels", "fpiwarp_map.h", "FW_"), ("kernels", "warp_map.py", ""),
+                               ("glsl", "fpiwarp_map.glsl", "FPW_")):
         text = source(kind, name)
         for core in ("CORE_AFFINE", "CORE_TPS", "CORE_TPS_INVERSE"):
             assert re.search(rf"core == {prefix}{core}\b", text), f"{name}: no branch for {core}"

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from .._warp import check_image
+from ..validation import check_image
 from ..backends.gl import bound_framebuffer, check_thread
 from .renderer import DISPLAY_FORMATS, Renderer
 

@@ -53,7 +53,7 @@ that made it: call the renderer from that thread, with the context current.
 import moderngl
 import numpy as np
 
-from .._warp import check_cval, check_image
+from ..validation import check_cval, check_image
 from ..backends.gl import (
     FULLSCREEN,
     GLWarper,
@@ -120,7 +120,7 @@ class Renderer:
     def __init__(self, ctx, *, order=1, mode="constant", cval=0.0, background=None, warper=None, method="pixel"):
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-        check_order_and_mode(order, mode)
+        order, mode = check_order_and_mode(order, mode)
         self.ctx = ctx
         self._owns_warper = warper is None
         self.warper = warper if warper is not None else GLWarper(ctx)
@@ -185,7 +185,8 @@ class Renderer:
     @cval.setter
     def cval(self, value):
         c = self.image.shape[2] if self.image is not None else 4
-        self._cval = check_cval(value, c) if np.ndim(value) else float(value)
+        dtype = self.image.dtype if self.image is not None else None
+        self._cval = check_cval(value, c, dtype) if np.ndim(value) else float(value)
 
     def set_transform(self, transform, *, handles=None, edges=None):
         """Show the warp by ``transform`` (source -> output): the parameter

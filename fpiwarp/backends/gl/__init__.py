@@ -40,7 +40,7 @@ Modules, one job each:
 * :mod:`.mesh`     the mesh path's grid and its culled, clipped draw;
 * :mod:`.targets`  textures and framebuffers reused between calls;
 * :mod:`.backend`  the registry's :class:`Backend`, :func:`warp_image_mesh`;
-* :mod:`.checks`   argument checks not offered by :mod:`fpiwarp._warp`.
+* :mod:`.checks`   the argument checks of :mod:`fpiwarp.validation` the GL code uses.
 """
 
 from .backend import Backend, warp_image_mesh

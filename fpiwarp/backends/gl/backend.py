@@ -1,8 +1,16 @@
 """The registry's "gl" backend on the shared headless context, and the
 mesh path as a function of the public API (:func:`warp_image_mesh`)."""
 
+import numpy as np
 
-from .checks import check_transform
+from ...validation import (
+    check_cval,
+    check_image,
+    check_map_size,
+    check_output_shape,
+    check_sizes,
+    check_warp_options,
+)
 from .context import check_thread, shared_context
 from .warper import GLWarper
 
@@ -54,18 +62,20 @@ def warp_image_mesh(image, transform, output_shape=None, *, order=1, mode="const
     Accepts what :func:`fpiwarp.warp_image` accepts; returns the same
     dtype and channel layout.
     """
-    from ..._warp import check_cval, check_image, check_output_shape
-    from .. import get_backend
+    from .. import backend_capabilities, get_backend
 
-    check_transform(transform)
+    capabilities = backend_capabilities("gl")
+    order, mode = check_warp_options(transform, order, mode)
     img, squeeze = check_image(image)
-    cval = check_cval(cval, img.shape[2])
+    cval = check_cval(cval, img.shape[2], img.dtype)
     shape = check_output_shape(output_shape, img)
+    check_sizes(img.shape, shape, img.dtype, capabilities, "gl")
+    check_map_size(transform, capabilities, "gl")  # the mesh path evaluates the forward map
     backend = get_backend("gl")
     check_thread()
     out = backend.warper.warp_image_mesh(
-        img, transform, shape, order=order, mode=mode, cval=cval, grid_step=grid_step,
-        vertices=vertices, triangles=triangles)
+        np.ascontiguousarray(img), transform, shape, order=order, mode=mode, cval=cval,
+        grid_step=grid_step, vertices=vertices, triangles=triangles)
     return out[:, :, 0] if squeeze else out
 
 

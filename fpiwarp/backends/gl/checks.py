@@ -1,22 +1,12 @@
-"""Argument checks of the GL stack that :mod:`fpiwarp._warp` does not
-offer as public helpers: kept in this one module so that a library-wide
-validation module can replace them in one place."""
+"""The GL stack's argument checks: those of :mod:`fpiwarp.validation`,
+the library's one set of checks, in the pairs the GL code asks for."""
 
-from ..._sampling import MODES, ORDERS
-from ..._transform import Transform
+from ...validation import check_mode, check_order, check_transform
 
-
-def check_transform(transform):
-    """Raise TypeError unless ``transform`` is an fpiwarp map."""
-    if not isinstance(transform, Transform):
-        raise TypeError(f"transform must be an fpiwarp map (FPI, Mobius, RLinear, ...), "
-                        f"got {type(transform).__name__}")
+__all__ = ["check_order_and_mode", "check_transform"]
 
 
 def check_order_and_mode(order, mode):
-    """Raise ValueError unless ``order`` and ``mode`` name a sampling of
-    :mod:`fpiwarp._sampling`."""
-    if order not in ORDERS:
-        raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
-    if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    """(order as an int, mode) after the library's checks; raises
+    :class:`fpiwarp.ArgumentError` for anything else."""
+    return check_order(order), check_mode(mode)

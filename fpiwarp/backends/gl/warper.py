@@ -17,10 +17,10 @@ import moderngl
 import numpy as np
 
 from ... import params as P
+from ...block import describe
 from . import readback
 from .checks import check_order_and_mode
 from .context import bound_framebuffer, create_context
-from .kinds import is_short_map, stage_kinds
 from .mesh import MeshBuffers, draw_culled_mesh, grid_mesh
 from .programs import FULLSCREEN, MAX_ROWS, ProgramCache, ProgramKey, set_uniform
 from .targets import TargetCache
@@ -139,11 +139,12 @@ class GLWarper:
             raise ValueError(f"a parameter block is (rows <= {MAX_ROWS}, 4) float32, got {block.shape}")
         if block.shape[0] != 1 + P.n_stages(block) * P.STAGE_ROWS:
             raise ValueError("parameter block rows do not match its header's number of stages")
+        kind = describe(block)  # refuses unknown cores before anything is uploaded
         self.ubo.write(block.tobytes())
         self.ubo.bind_to_uniform_block(self.ubo_binding)
-        #: the block just uploaded is a specialized short map (see is_short_map)
-        self.short_map = self.specialize and is_short_map(block)
-        return tuple(stage_kinds(block)) if self.specialize else None
+        #: the block just uploaded is a specialized short map (see BlockKind.is_short)
+        self.short_map = self.specialize and kind.is_short
+        return tuple((s.core, s.n_regions) for s in kind.stages) if self.specialize else None
 
     def set_view(self, progs, origin, size):
         """Set the output rectangle of one tile in each program of ``progs``."""
