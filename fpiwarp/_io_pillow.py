@@ -41,12 +41,18 @@ def open_checked(path, max_pixels):
 
 
 def _bomb_message(path, exc, max_pixels):
+    """One line for Pillow's DecompressionBombError (raised from the header,
+    at twice Image.MAX_IMAGE_PIXELS): ours when the image is beyond our
+    limit too, else one that says how to lift Pillow's."""
     found = re.search(r"\((\d+) pixels\)", str(exc))
-    size = f"{int(found.group(1)):,} pixels" if found else "its size"
-    return (
-        f"{path}: image of {size} exceeds the limit of {max_pixels:,} pixels "
-        "(a decompression bomb, or too large to warp in memory)"
-    )
+    pixels = int(found.group(1)) if found else None
+    if pixels is None or pixels > max_pixels:
+        size = f"{pixels:,} pixels" if pixels is not None else "its size"
+        return (
+            f"{path}: image of {size} exceeds the limit of {max_pixels:,} pixels "
+            "(a decompression bomb, or too large to warp in memory)"
+        )
+    return f"{path}: image of {pixels:,} pixels exceeds Pillow's limit; raise PIL.Image.MAX_IMAGE_PIXELS to read it"
 
 
 def tiff_bits(im):

@@ -15,10 +15,19 @@ from ._io_formats import INSTALL_IO, ImageInfo, check_pixel_count, optional_code
 TIFF_SIGNATURES = (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+")
 
 # tifffile's compression names <-> Pillow's, so either codec keeps the input's.
-_TO_PILLOW = {"LZW": "tiff_lzw", "ADOBE_DEFLATE": "tiff_adobe_deflate", "DEFLATE": "tiff_deflate",
-              "PACKBITS": "packbits", "NONE": "raw"}
-_FROM_PILLOW = {"tiff_lzw": "lzw", "tiff_adobe_deflate": "adobe_deflate", "tiff_deflate": "deflate",
-                "packbits": "packbits"}
+_TO_PILLOW = {
+    "LZW": "tiff_lzw",
+    "ADOBE_DEFLATE": "tiff_adobe_deflate",
+    "DEFLATE": "tiff_deflate",
+    "PACKBITS": "packbits",
+    "NONE": "raw",
+}
+_FROM_PILLOW = {
+    "tiff_lzw": "lzw",
+    "tiff_adobe_deflate": "adobe_deflate",
+    "tiff_deflate": "deflate",
+    "packbits": "packbits",
+}
 _ICC, _ORIENTATION, _XRES, _YRES, _RESUNIT = 34675, 274, 282, 283, 296
 _UNASSOCIATED_ALPHA = 2
 

@@ -213,8 +213,14 @@ def test_16_bit_color_tiff_keeps_lzw_compression_icc_and_dpi(tmp_path, rng):
     icc = ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes()
     image = _random((6, 7, 4), np.uint16, rng)
     tifffile.imwrite(
-        tmp_path / "in.tif", image, photometric="rgb", extrasamples=["unassalpha"], compression="lzw",
-        iccprofile=icc, resolution=(300, 300), resolutionunit="INCH",
+        tmp_path / "in.tif",
+        image,
+        photometric="rgb",
+        extrasamples=["unassalpha"],
+        compression="lzw",
+        iccprofile=icc,
+        resolution=(300, 300),
+        resolutionunit="INCH",
     )
     back, info = read_image(tmp_path / "in.tif")
     write_image(tmp_path / "out.tif", back, info)
@@ -243,8 +249,9 @@ def test_jpeg_round_trip_keeps_layout_quality_and_icc_profile(tmp_path):
     assert tuple(round(d) for d in info2.dpi) == (300, 300)
 
 
-@pytest.mark.parametrize("name, dtype", [("out.png", np.uint8), ("out.tif", np.uint8), ("out.png", np.uint16),
-                                         ("out.tif", np.uint16)])
+@pytest.mark.parametrize(
+    "name, dtype", [("out.png", np.uint8), ("out.tif", np.uint8), ("out.png", np.uint16), ("out.tif", np.uint16)]
+)
 def test_icc_profile_and_dpi_are_kept_in_png_and_tiff(tmp_path, rng, name, dtype):
     _needs_extra((6, 5, 3), dtype, "PNG" if name.endswith(".png") else "TIFF")
     icc = ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes()
@@ -388,7 +395,8 @@ def _tiff_header_only(width, height, samples, bits):
     ifd_at = 8 + 16
     ifd = struct.pack("<H", len(entries))
     for tag, kind, count, value in entries:
-        ifd += struct.pack("<HHI", tag, kind, count) + (struct.pack("<HH", value, 0) if kind == 3 else struct.pack("<I", value))
+        packed = struct.pack("<HH", value, 0) if kind == 3 else struct.pack("<I", value)
+        ifd += struct.pack("<HHI", tag, kind, count) + packed
     return b"II*\0" + struct.pack("<I", ifd_at) + bytes(16) + ifd + struct.pack("<I", 0)
 
 
@@ -425,9 +433,16 @@ def test_a_small_file_declaring_a_huge_size_is_refused_before_decoding(tmp_path,
     assert f"{width * height:,}" in message
 
 
-@pytest.mark.parametrize("name, shape, dtype", [("a.png", (30, 40, 3), np.uint8), ("a.png", (30, 40, 3), np.uint16),
-                                                ("a.jpg", (30, 40, 3), np.uint8), ("a.tif", (30, 40, 3), np.uint16),
-                                                ("a.tif", (30, 40), np.float32)])
+@pytest.mark.parametrize(
+    "name, shape, dtype",
+    [
+        ("a.png", (30, 40, 3), np.uint8),
+        ("a.png", (30, 40, 3), np.uint16),
+        ("a.jpg", (30, 40, 3), np.uint8),
+        ("a.tif", (30, 40, 3), np.uint16),
+        ("a.tif", (30, 40), np.float32),
+    ],
+)
 def test_the_pixel_limit_holds_for_every_codec(tmp_path, rng, name, shape, dtype):
     _needs_extra(shape, dtype, "PNG" if name.endswith(".png") else "TIFF")
     write_image(tmp_path / name, _random(shape, dtype, rng))
@@ -607,8 +622,12 @@ def test_an_output_that_is_a_folder_gets_one_message_naming_it(tmp_path, rng, ov
 
 @pytest.mark.parametrize(
     "where, code, text",
-    [("create", errno.EROFS, "Read-only file system"), ("create", errno.EACCES, "Permission denied"),
-     ("write", errno.ENOSPC, "No space left on device"), ("rename", errno.EROFS, "Read-only file system")],
+    [
+        ("create", errno.EROFS, "Read-only file system"),
+        ("create", errno.EACCES, "Permission denied"),
+        ("write", errno.ENOSPC, "No space left on device"),
+        ("rename", errno.EROFS, "Read-only file system"),
+    ],
 )
 def test_file_system_errors_name_the_output_not_the_temporary_file(tmp_path, monkeypatch, where, code, text):
     """A read-only file system, a folder without write permission or a full
@@ -632,3 +651,10 @@ def test_file_system_errors_name_the_output_not_the_temporary_file(tmp_path, mon
     assert io.TEMP_SUFFIX not in str(error)
     monkeypatch.undo()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_limit_raised_beyond_pillows_says_which_limit_refused(tmp_path):
+    path = tmp_path / "huge.jpg"
+    _jpeg_declaring(path, 60_000, 60_000)
+    with pytest.raises(ImageError, match=r"huge.jpg: image of 3,600,000,000 pixels exceeds Pillow's limit"):
+        read_image(path, max_pixels=10**10)
