@@ -8,6 +8,7 @@ for TIFF. Anything that cannot be stored without loss is refused up front,
 before any warping, with a message naming the file.
 """
 
+import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -78,7 +79,7 @@ def optional_codec(module, path, what):
     """Import ``module`` ("imagecodecs" or "tifffile"), or raise ImageError
     naming ``path``, what needs it, and the extra to install."""
     try:
-        return __import__(module)
+        return importlib.import_module(module)
     except ImportError:
         raise ImageError(f"{path}: {what} needs the {module} package: {INSTALL_IO}") from None
 

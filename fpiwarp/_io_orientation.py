@@ -8,6 +8,7 @@ copy is not turned a second time. ``orientation="stored"`` keeps the pixels
 as stored and the tag as it is, which is consistent too.
 """
 
+import re
 import struct
 
 import numpy as np
@@ -31,6 +32,18 @@ _TO_DISPLAY = {
 }
 
 
+#: The inverse turns: most are their own inverse, the quarter turns swap.
+_INVERSE = {2: 2, 3: 3, 4: 4, 5: 5, 6: 8, 7: 7, 8: 6}
+
+
+def to_stored(array, orientation):
+    """Undo an orientation a codec applied on its own (Pillow does for
+    TIFF), so that every reader hands over the pixels as stored."""
+    if orientation == 1:
+        return array
+    return np.ascontiguousarray(_TO_DISPLAY[_INVERSE[orientation]](array))
+
+
 def check_choice(orientation):
     """Raise ValueError unless ``orientation`` is one of ORIENTATIONS."""
     if orientation not in ORIENTATIONS:
@@ -51,26 +64,45 @@ def orientation_of(exif):
 
 def apply_orientation(array, info, orientation, choice):
     """(array, info) as ``choice`` asks: "apply" turns the pixels to the
-    displayed orientation and removes the tag from ``info``'s EXIF (and PNG
-    eXIf chunk); "stored" leaves both. ``info.orientation`` says what the
-    returned pixels still need for display."""
+    displayed orientation and removes the tag from ``info``'s EXIF and PNG
+    chunks; "stored" leaves the pixels and makes sure the tag travels with
+    them (an EXIF block holding it alone when the input kept it outside
+    EXIF, as TIFF does). ``info.orientation`` says what the returned pixels
+    still need for display."""
     check_choice(choice)
     info.orientation = orientation
-    if choice == "stored" or orientation == 1:
+    if orientation == 1:
+        return array, info
+    if choice == "stored":
+        if not info.exif:
+            tags = Image.Exif()
+            tags[ORIENTATION_TAG] = orientation
+            info.exif = tags.tobytes()
         return array, info
     array = np.ascontiguousarray(_TO_DISPLAY[orientation](array))
     info.orientation = 1
     info.exif = _without_orientation(info.exif)
-    chunks = []
-    for ctype, payload in info.png_chunks:
-        if ctype == b"eXIf":
-            payload = _without_orientation(payload)
-            if payload is None:
-                continue
-            payload = payload.removeprefix(b"Exif\0\0")
-        chunks.append((ctype, payload))
-    info.png_chunks = chunks
+    info.png_chunks = [chunk for chunk in map(_chunk_without_orientation, info.png_chunks) if chunk is not None]
     return array, info
+
+
+#: XMP's copy of the tag, as Pillow's ImageOps.exif_transpose removes it.
+_XMP_ORIENTATION = (rb'tiff:Orientation="[0-9]"', rb"<tiff:Orientation>[0-9]</tiff:Orientation>")
+
+
+def _chunk_without_orientation(chunk):
+    """A PNG chunk with the orientation taken out, or None to drop it."""
+    ctype, payload = chunk
+    if ctype == b"eXIf":
+        exif = _without_orientation(payload)
+        return None if exif is None else (ctype, exif.removeprefix(b"Exif\0\0"))
+    keyword = payload.split(b"\0", 1)[0]
+    if ctype in (b"tEXt", b"zTXt", b"iTXt") and keyword == b"Raw profile type exif":
+        return None  # ImageMagick's hex copy of EXIF, orientation included
+    if ctype == b"iTXt" and keyword == b"XML:com.adobe.xmp":
+        for pattern in _XMP_ORIENTATION:
+            payload = re.sub(pattern, b"", payload)
+    return ctype, payload
 
 
 def _load(exif):

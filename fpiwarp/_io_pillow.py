@@ -14,7 +14,7 @@ from PIL import Image, JpegImagePlugin, UnidentifiedImageError
 
 from ._io_errors import ImageError
 from ._io_formats import ImageInfo, check_pixel_count
-from ._io_orientation import ORIENTATION_TAG
+from ._io_orientation import ORIENTATION_TAG, to_stored
 
 
 def open_checked(path, max_pixels):
@@ -63,17 +63,31 @@ def tiff_bits(im):
 
 
 def read_pillow(path, im):
-    """(array, info, orientation) of an image opened by :func:`open_checked`."""
+    """(array, info, orientation) of an image opened by
+    :func:`open_checked`: the pixels as stored, and the EXIF orientation
+    they need for display."""
     try:
+        orientation = _orientation(im)
         im.load()
-        return _from_pillow(im, path)
+        array, info = _from_pillow(im, path)
     except (OSError, SyntaxError, ValueError, struct.error) as exc:
         if isinstance(exc, (ImageError, FileNotFoundError, PermissionError)):
             raise
         raise ImageError(f"{path}: cannot read image: {exc}") from None
+    if im.format == "TIFF" and orientation != 1 and ORIENTATION_TAG not in im.tag_v2:
+        array = to_stored(array, orientation)  # Pillow turned it while loading, and dropped the tag
+    return array, info, orientation
+
+
+def _orientation(im):
+    """The EXIF orientation of an open image (TIFF: its own tag), 1..8."""
+    tags = im.tag_v2 if im.format == "TIFF" else im.getexif()
+    value = tags.get(ORIENTATION_TAG, 1)
+    return value if isinstance(value, int) and 1 <= value <= 8 else 1
 
 
 def _from_pillow(im, path):
+    """(array, info) of a loaded Pillow image."""
     info = ImageInfo(format=im.format, mode=im.mode)
     info.icc_profile = im.info.get("icc_profile") or None
     exif = im.info.get("exif")
@@ -88,7 +102,6 @@ def _from_pillow(im, path):
         info.tiff_compression = im.info.get("compression")
         if tiff_bits(im) > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I", "F"):
             raise ImageError(f"{path}: {tiff_bits(im)}-bit {im.mode} TIFF is not supported")
-    orientation = im.getexif().get(ORIENTATION_TAG, 1)
     mode = im.mode
     if mode in ("L", "LA", "RGB", "RGBA", "CMYK"):
         arr = np.asarray(im)
@@ -112,7 +125,7 @@ def _from_pillow(im, path):
         info.mode = target
     else:
         raise ImageError(f"{path}: pixel mode {mode!r} is not supported")
-    return np.ascontiguousarray(arr), info, orientation if isinstance(orientation, int) else 1
+    return np.ascontiguousarray(arr), info
 
 
 def to_pillow(array, mode):

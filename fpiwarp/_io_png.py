@@ -134,13 +134,13 @@ def _dpi(chunks):
     return None
 
 
-def encode_png(array, mode, info):
+def encode_png(path, array, mode, info):
     """PNG file bytes of an (H, W[, C]) uint8/uint16 array with the
-    metadata of ``info``; ``mode`` is its Pillow mode (None for 16-bit
-    colour, which ``imagecodecs`` encodes)."""
+    metadata of ``info``, for ``path``; ``mode`` is its Pillow mode (None
+    for 16-bit colour, which ``imagecodecs`` encodes)."""
     channels = 1 if array.ndim == 2 else array.shape[2]
     if is_16_bit_colour(array.dtype, channels):
-        codecs = optional_codec("imagecodecs", "the output", "writing 16-bit colour PNG")
+        codecs = optional_codec("imagecodecs", path, "writing 16-bit colour PNG")
         pixels = codecs.png_encode(np.ascontiguousarray(array), level=6)
     else:
         buffer = BytesIO()

@@ -46,7 +46,7 @@ def is_16_bit_colour_tiff(path):
         return False
     try:
         with tifffile.TiffFile(path) as tif:
-            page = tif.pages.first
+            page = tif.pages[0]
             return page.bitspersample == 16 and page.samplesperpixel > 1
     except (tifffile.TiffFileError, ValueError, OSError):
         return False  # Pillow's reader gives the message
@@ -65,7 +65,7 @@ def read_tiff16(path, max_pixels):
         with tifffile.TiffFile(path) as tif:
             if len(tif.pages) > 1:
                 raise ImageError(f"{path}: has {len(tif.pages)} frames or pages; fpiwarp reads single images only")
-            page = tif.pages.first
+            page = tif.pages[0]
             check_pixel_count(path, page.imagewidth, page.imagelength, max_pixels)
             if page.samplesperpixel > 4 or page.dtype != np.uint16:
                 raise ImageError(f"{path}: {page.samplesperpixel}-sample {page.dtype} TIFF is not supported")
@@ -122,6 +122,8 @@ def write_tiff16(file, array, info):
             options["resolutionunit"] = "INCH"
         if info.format == "TIFF" and info.tiff_compression in _FROM_PILLOW:
             options["compression"] = _FROM_PILLOW[info.tiff_compression]
+        if info.orientation != 1:  # pixels kept as stored: so is their tag
+            options["extratags"] = [(_ORIENTATION, "H", 1, info.orientation, True)]
     buffer = BytesIO()  # tifffile wants a named file or a buffer, not a file descriptor
     tifffile.imwrite(buffer, np.ascontiguousarray(array, dtype=np.uint16), **options)
     file.write(buffer.getvalue())

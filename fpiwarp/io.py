@@ -110,7 +110,7 @@ def write_image(path: str | os.PathLike, array, info: ImageInfo | None = None, *
     fmt = check_writable(path, dtype, channels, info)
     mode = pillow_mode(dtype, channels, info)
     if fmt == "PNG":
-        data = encode_png(array, mode, info)
+        data = encode_png(path, array, mode, info)
         atomic_write(path, lambda f: f.write(data), overwrite=overwrite)
     elif fmt == "TIFF" and is_16_bit_colour(dtype, channels):
         atomic_write(path, lambda f: write_tiff16(f, array, info), overwrite=overwrite)

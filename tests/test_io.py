@@ -526,6 +526,48 @@ def test_a_portrait_jpeg_is_read_as_shown_and_written_with_a_consistent_tag(tmp_
         assert im.size == (45, 30) and im.getexif()[0x0112] == 6
 
 
+def _tiff_orientation(path):
+    tifffile = pytest.importorskip("tifffile")
+    with tifffile.TiffFile(path) as tif:
+        tag = tif.pages[0].tags.get(0x0112)
+        return 1 if tag is None else tag.value
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_tiff_orientation_is_applied_or_kept_with_its_pixels(tmp_path, rng, dtype):
+    """TIFF keeps the tag in its own header (Pillow for 8 bits, tifffile
+    for 16-bit colour): applied, the output has none; stored, it has 6."""
+    tifffile = pytest.importorskip("tifffile")
+    stored = _random((5, 8, 3), dtype, rng)
+    tifffile.imwrite(tmp_path / "in.tif", stored, photometric="rgb", extratags=[(0x0112, "H", 1, 6, True)])
+    image, info = read_image(tmp_path / "in.tif")
+    np.testing.assert_array_equal(image, np.rot90(stored, -1))
+    write_image(tmp_path / "applied.tif", image, info)
+    assert _tiff_orientation(tmp_path / "applied.tif") == 1
+    raw, raw_info = read_image(tmp_path / "in.tif", orientation="stored")
+    np.testing.assert_array_equal(raw, stored)
+    write_image(tmp_path / "stored.tif", raw, raw_info)
+    assert _tiff_orientation(tmp_path / "stored.tif") == 6
+    write_image(tmp_path / "stored.png", raw, raw_info)  # into another format, the tag goes along
+    assert read_image(tmp_path / "stored.png", orientation="stored")[1].orientation == 6
+
+
+def test_xmp_and_raw_profile_copies_of_the_tag_go_when_it_is_applied(tmp_path, rng):
+    stored = _random((5, 8, 3), np.uint8, rng)
+    xmp = b'XML:com.adobe.xmp\0\0\0\0\0<x:xmpmeta><rdf:Description tiff:Orientation="6" tiff:Make="cam"/></x:xmpmeta>'
+    exif = _exif_with_orientation(6).removeprefix(b"Exif\0\0")
+    raw_profile = b"Raw profile type exif\0\nexif\n" + f"{len(exif):8}\n".encode() + exif.hex().encode() + b"\n"
+    chunks = [(b"eXIf", exif), (b"iTXt", xmp), (b"tEXt", raw_profile)]
+    (tmp_path / "in.png").write_bytes(_png_with_every_filter(stored, chunks))
+    image, info = read_image(tmp_path / "in.png")
+    write_image(tmp_path / "out.png", image, info)
+    kept = dict(io.png_chunks((tmp_path / "out.png").read_bytes(), "out.png")[1:-2])
+    assert b"Orientation" not in kept[b"iTXt"] and b'tiff:Make="cam"' in kept[b"iTXt"]
+    assert b"tEXt" not in kept
+    with Image.open(tmp_path / "out.png") as im:
+        assert im.size == (5, 8) and im.getexif().get(0x0112, 1) == 1
+
+
 def test_an_unknown_orientation_choice_is_refused(tmp_path, rng):
     write_image(tmp_path / "a.png", _random((4, 4), np.uint8, rng))
     with pytest.raises(ValueError, match="'apply', 'stored'"):
