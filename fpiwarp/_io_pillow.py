@@ -17,13 +17,14 @@ from ._io_formats import ImageInfo, check_pixel_count
 from ._io_orientation import ORIENTATION_TAG, to_stored
 
 
-def open_checked(path, max_pixels):
-    """Open ``path`` with Pillow (header only), refusing multi-frame files
-    and images beyond ``max_pixels`` before any pixel is decoded."""
+def open_checked(path, max_pixels, unreadable="not an image file (or a format Pillow cannot read)"):
+    """Open ``path`` with Pillow (header only), refusing images beyond
+    ``max_pixels`` and multi-frame files before any pixel is decoded;
+    ``unreadable`` says what a file Pillow does not recognise is."""
     try:
         im = Image.open(path)
     except UnidentifiedImageError:
-        raise ImageError(f"{path}: not an image file (or a format Pillow cannot read)") from None
+        raise ImageError(f"{path}: {unreadable}") from None
     except Image.DecompressionBombError as exc:  # far beyond Pillow's limit: it refuses before we can
         raise ImageError(_bomb_message(path, exc, max_pixels)) from None
     except (OSError, SyntaxError, ValueError, struct.error) as exc:
@@ -31,9 +32,9 @@ def open_checked(path, max_pixels):
             raise
         raise ImageError(f"{path}: cannot read image: {exc}") from None
     try:
+        check_pixel_count(path, *im.size, max_pixels)
         if getattr(im, "n_frames", 1) > 1:
             raise ImageError(f"{path}: has {im.n_frames} frames or pages; fpiwarp reads single images only")
-        check_pixel_count(path, *im.size, max_pixels)
     except BaseException:
         im.close()
         raise

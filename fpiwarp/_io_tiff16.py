@@ -37,19 +37,32 @@ def is_tiff(head):
     return head[:4] in TIFF_SIGNATURES
 
 
+def have_tifffile():
+    """True when tifffile (the ``io`` extra) can be imported."""
+    try:
+        import tifffile  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
 def is_16_bit_colour_tiff(path):
     """True when ``path`` is a TIFF that Pillow cannot read without loss
     (16-bit samples, 2 to 4 of them) and tifffile is installed to read it."""
-    try:
-        import tifffile
-    except ImportError:
+    if not have_tifffile():
         return False
+    import tifffile
+
     try:
         with tifffile.TiffFile(path) as tif:
             page = tif.pages[0]
             return page.bitspersample == 16 and page.samplesperpixel > 1
     except (tifffile.TiffFileError, ValueError, OSError):
         return False  # Pillow's reader gives the message
+
+
+#: What a TIFF is that Pillow does not recognise, when tifffile is missing.
+UNREADABLE_WITHOUT_TIFFFILE = f"a TIFF that Pillow cannot read (16-bit gray+alpha TIFF needs tifffile: {INSTALL_IO})"
 
 
 def needs_tifffile(path, bits, mode):

@@ -42,7 +42,15 @@ from ._io_formats import (
 from ._io_orientation import ORIENTATIONS, apply_orientation, check_choice
 from ._io_pillow import open_checked, read_pillow, tiff_bits, write_pillow
 from ._io_png import PNG_SIGNATURE, encode_png, png_chunks, read_png
-from ._io_tiff16 import is_16_bit_colour_tiff, is_tiff, needs_tifffile, read_tiff16, write_tiff16
+from ._io_tiff16 import (
+    UNREADABLE_WITHOUT_TIFFFILE,
+    have_tifffile,
+    is_16_bit_colour_tiff,
+    is_tiff,
+    needs_tifffile,
+    read_tiff16,
+    write_tiff16,
+)
 
 __all__ = [
     "INSTALL_IO",
@@ -91,10 +99,13 @@ def read_image(
         array, info, tag = read_png(path, path.read_bytes(), max_pixels)
     elif is_tiff(head) and is_16_bit_colour_tiff(path):
         array, info, tag = read_tiff16(path, max_pixels)
+    elif is_tiff(head) and not have_tifffile():
+        with open_checked(path, max_pixels, UNREADABLE_WITHOUT_TIFFFILE) as im:
+            if tiff_bits(im) > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I", "F"):
+                raise needs_tifffile(path, tiff_bits(im), im.mode)
+            array, info, tag = read_pillow(path, im)
     else:
         with open_checked(path, max_pixels) as im:
-            if im.format == "TIFF" and tiff_bits(im) > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I", "F"):
-                raise needs_tifffile(path, tiff_bits(im), im.mode)
             array, info, tag = read_pillow(path, im)
     return apply_orientation(array, info, tag, orientation)
 

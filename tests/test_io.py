@@ -335,6 +335,15 @@ def test_16_bit_color_without_the_io_extra_says_what_to_install(tmp_path, rng, w
     np.testing.assert_array_equal(read_image(tmp_path / ("gray" + name))[0], image[..., 0])
 
 
+def test_16_bit_gray_alpha_tiff_without_tifffile_says_what_to_install(tmp_path, rng, without):
+    """Pillow does not even recognise this one: the message still helps."""
+    pytest.importorskip("tifffile")
+    write_image(tmp_path / "la.tif", _random((4, 5, 2), np.uint16, rng))
+    without("tifffile")
+    with pytest.raises(ImageError, match=r"la.tif: a TIFF that Pillow cannot read .*pip install 'fpiwarp\[io\]'"):
+        read_image(tmp_path / "la.tif")
+
+
 def test_16_bit_palette_png_is_called_invalid_not_interlaced(tmp_path):
     (tmp_path / "p16.png").write_bytes(_png(4, 4, 16, 3, zlib.compress(b"\0" * 40)))
     with pytest.raises(ImageError) as caught:
