@@ -1,9 +1,8 @@
 """Reading and writing through Pillow: every format it knows, with 8-bit
 samples, and 16-bit or float32 gray where the format has them.
 
-What Pillow would reduce to 8 bits (16-bit colour) is not read here: PNG
-goes to the ``imagecodecs`` reader before this one, and 16-bit colour TIFF
-is recognised from its header and handed to ``tifffile``.
+What Pillow would reduce to 8 bits (16-bit colour) is not read here: the
+PNG and TIFF modules send it to ``imagecodecs`` and ``tifffile``.
 """
 
 import re
@@ -101,8 +100,6 @@ def _from_pillow(im, path):
         info.jpeg_subsampling = sampling if sampling >= 0 else None
     if im.format == "TIFF":
         info.tiff_compression = im.info.get("compression")
-        if tiff_bits(im) > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I", "F"):
-            raise ImageError(f"{path}: {tiff_bits(im)}-bit {im.mode} TIFF is not supported")
     mode = im.mode
     if mode in ("L", "LA", "RGB", "RGBA", "CMYK"):
         arr = np.asarray(im)

@@ -16,7 +16,7 @@ Pillow reads and writes every format it knows; 16-bit colour PNG and TIFF
 (``imagecodecs`` and ``tifffile``). Images above ``max_pixels`` (default
 :data:`MAX_PIXELS`) are refused from their header, before decoding. The
 parts live in modules of their own: ``_io_formats`` (what each format
-stores), ``_io_png``, ``_io_pillow``, ``_io_tiff16`` (codecs),
+stores), ``_io_png``, ``_io_pillow``, ``_io_tiff`` (codecs),
 ``_io_orientation`` (EXIF orientation), ``_io_atomic`` (atomic writes) and
 ``_io_errors``.
 """
@@ -40,17 +40,9 @@ from ._io_formats import (
     pillow_mode,
 )
 from ._io_orientation import ORIENTATIONS, apply_orientation, check_choice
-from ._io_pillow import open_checked, read_pillow, tiff_bits, write_pillow
+from ._io_pillow import open_checked, read_pillow, write_pillow
 from ._io_png import PNG_SIGNATURE, encode_png, png_chunks, read_png
-from ._io_tiff16 import (
-    UNREADABLE_WITHOUT_TIFFFILE,
-    have_tifffile,
-    is_16_bit_colour_tiff,
-    is_tiff,
-    needs_tifffile,
-    read_tiff16,
-    write_tiff16,
-)
+from ._io_tiff import is_tiff, read_tiff, write_tiff16
 
 __all__ = [
     "INSTALL_IO",
@@ -97,13 +89,8 @@ def read_image(
         head = f.read(len(PNG_SIGNATURE))
     if head == PNG_SIGNATURE:
         array, info, tag = read_png(path, path.read_bytes(), max_pixels)
-    elif is_tiff(head) and is_16_bit_colour_tiff(path):
-        array, info, tag = read_tiff16(path, max_pixels)
-    elif is_tiff(head) and not have_tifffile():
-        with open_checked(path, max_pixels, UNREADABLE_WITHOUT_TIFFFILE) as im:
-            if tiff_bits(im) > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I", "F"):
-                raise needs_tifffile(path, tiff_bits(im), im.mode)
-            array, info, tag = read_pillow(path, im)
+    elif is_tiff(head):
+        array, info, tag = read_tiff(path, max_pixels)
     else:
         with open_checked(path, max_pixels) as im:
             array, info, tag = read_pillow(path, im)

@@ -683,17 +683,16 @@ def test_an_output_that_is_a_folder_gets_one_message_naming_it(tmp_path, rng, ov
 def test_file_system_errors_name_the_output_not_the_temporary_file(tmp_path, monkeypatch, where, code, text):
     """A read-only file system, a folder without write permission or a full
     disk: the message names the user's path and the real problem."""
-    from fpiwarp import _io_atomic
 
     def fail(*args, **kwargs):
         name = args[0] if args and where != "write" else None
         raise OSError(code, os.strerror(code), str(name) if name else None)
 
     if where == "create":
-        monkeypatch.setattr(_io_atomic.os, "open", fail)
+        monkeypatch.setattr(os, "open", fail)
     elif where == "rename":
-        monkeypatch.setattr(_io_atomic.os, "link", fail)
-        monkeypatch.setattr(_io_atomic.os, "replace", fail)
+        monkeypatch.setattr(os, "link", fail)
+        monkeypatch.setattr(os, "replace", fail)
     target = tmp_path / "out.png"
     with pytest.raises(OSError) as caught:
         io.atomic_write(target, fail if where == "write" else (lambda f: f.write(b"data")))

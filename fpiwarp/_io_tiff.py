@@ -1,8 +1,9 @@
-"""16-bit colour TIFF (gray+alpha, RGB, RGBA) through ``tifffile``.
+"""TIFF: Pillow for what it reads without loss, ``tifffile`` for the rest.
 
-Pillow reduces these to 8 bits or cannot open them, so they go through
-``tifffile`` (the ``io`` extra), with their ICC profile, resolution,
-lossless compression and orientation; every other TIFF goes through Pillow.
+Pillow reads and writes 8-bit, 16-bit gray and float32 gray TIFF. It
+reduces 16-bit colour (gray+alpha, RGB, RGBA) to 8 bits or cannot open it,
+so that goes through ``tifffile`` (the ``io`` extra), with its ICC profile,
+resolution, lossless compression and orientation.
 """
 
 from io import BytesIO
@@ -11,6 +12,7 @@ import numpy as np
 
 from ._io_errors import ImageError
 from ._io_formats import INSTALL_IO, ImageInfo, check_pixel_count, optional_codec
+from ._io_pillow import open_checked, read_pillow, tiff_bits
 
 TIFF_SIGNATURES = (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+")
 
@@ -37,6 +39,25 @@ def is_tiff(head):
     return head[:4] in TIFF_SIGNATURES
 
 
+#: Pillow modes that hold TIFF samples of more than 8 bits without loss.
+_DEEP_PILLOW_MODES = ("I;16", "I;16B", "I;16L", "I", "F")
+
+
+def read_tiff(path, max_pixels):
+    """(array, info, orientation) of a TIFF file, through tifffile when it
+    is 16-bit colour, else through Pillow."""
+    if have_tifffile():
+        if is_16_bit_colour_tiff(path):
+            return read_tiff16(path, max_pixels)
+        unreadable = "not a TIFF that Pillow can read"
+    else:
+        unreadable = UNREADABLE_WITHOUT_TIFFFILE
+    with open_checked(path, max_pixels, unreadable) as im:
+        if tiff_bits(im) > 8 and im.mode not in _DEEP_PILLOW_MODES:
+            raise needs_tifffile(path, tiff_bits(im), im.mode)
+        return read_pillow(path, im)
+
+
 def have_tifffile():
     """True when tifffile (the ``io`` extra) can be imported."""
     try:
@@ -47,10 +68,8 @@ def have_tifffile():
 
 
 def is_16_bit_colour_tiff(path):
-    """True when ``path`` is a TIFF that Pillow cannot read without loss
-    (16-bit samples, 2 to 4 of them) and tifffile is installed to read it."""
-    if not have_tifffile():
-        return False
+    """True when ``path`` is a TIFF that Pillow cannot read without loss:
+    16-bit samples, 2 or more of them (needs tifffile)."""
     import tifffile
 
     try:
@@ -66,7 +85,9 @@ UNREADABLE_WITHOUT_TIFFFILE = f"a TIFF that Pillow cannot read (16-bit gray+alph
 
 
 def needs_tifffile(path, bits, mode):
-    """The error for a TIFF that only tifffile could read (not installed)."""
+    """The error for a TIFF that Pillow would reduce to 8 bits."""
+    if have_tifffile():
+        return ImageError(f"{path}: {bits}-bit {mode} TIFF is not supported")
     return ImageError(f"{path}: {bits}-bit {mode} TIFF needs the tifffile package: {INSTALL_IO}")
 
 
