@@ -74,8 +74,8 @@ def read_pillow(path, im):
         if isinstance(exc, (ImageError, FileNotFoundError, PermissionError)):
             raise
         raise ImageError(f"{path}: cannot read image: {exc}") from None
-    if im.format == "TIFF" and orientation != 1 and ORIENTATION_TAG not in im.tag_v2:
-        array = to_stored(array, orientation)  # Pillow turned it while loading, and dropped the tag
+    if im.format == "TIFF":
+        array = to_stored(array, orientation)  # Pillow (10 and later) turns TIFF pixels while loading
     return array, info, orientation
 
 

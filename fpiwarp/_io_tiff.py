@@ -32,6 +32,7 @@ _FROM_PILLOW = {
 }
 _ICC, _ORIENTATION, _XRES, _YRES, _RESUNIT = 34675, 274, 282, 283, 296
 _UNASSOCIATED_ALPHA = 2
+_UNDEFINED = 7  # TIFF field type of opaque bytes
 
 
 def is_tiff(head):
@@ -149,15 +150,17 @@ def write_tiff16(file, array, info):
         "software": False,
     }
     if info is not None:
-        if info.icc_profile:
-            options["iccprofile"] = info.icc_profile
+        extratags = []
+        if info.icc_profile:  # as a plain tag: tifffile's iccprofile option is recent
+            extratags.append((_ICC, _UNDEFINED, len(info.icc_profile), info.icc_profile, True))
         if info.dpi:
             options["resolution"] = tuple(float(d) for d in info.dpi[:2])
             options["resolutionunit"] = "INCH"
         if info.format == "TIFF" and info.tiff_compression in _FROM_PILLOW:
             options["compression"] = _FROM_PILLOW[info.tiff_compression]
         if info.orientation != 1:  # pixels kept as stored: so is their tag
-            options["extratags"] = [(_ORIENTATION, "H", 1, info.orientation, True)]
+            extratags.append((_ORIENTATION, "H", 1, info.orientation, True))
+        options["extratags"] = extratags
     buffer = BytesIO()  # tifffile wants a named file or a buffer, not a file descriptor
     tifffile.imwrite(buffer, np.ascontiguousarray(array, dtype=np.uint16), **options)
     file.write(buffer.getvalue())

@@ -218,7 +218,7 @@ def test_16_bit_color_tiff_keeps_lzw_compression_icc_and_dpi(tmp_path, rng):
         photometric="rgb",
         extrasamples=["unassalpha"],
         compression="lzw",
-        iccprofile=icc,
+        extratags=[(34675, 7, len(icc), icc, True)],
         resolution=(300, 300),
         resolutionunit="INCH",
     )
@@ -542,23 +542,24 @@ def _tiff_orientation(path):
         return 1 if tag is None else tag.value
 
 
+@pytest.mark.parametrize("orientation, turn", [(3, lambda a: a[::-1, ::-1]), (6, lambda a: np.rot90(a, -1))])
 @pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
-def test_tiff_orientation_is_applied_or_kept_with_its_pixels(tmp_path, rng, dtype):
+def test_tiff_orientation_is_applied_or_kept_with_its_pixels(tmp_path, rng, dtype, orientation, turn):
     """TIFF keeps the tag in its own header (Pillow for 8 bits, tifffile
-    for 16-bit colour): applied, the output has none; stored, it has 6."""
+    for 16-bit colour): applied, the output has none; stored, it has it."""
     tifffile = pytest.importorskip("tifffile")
     stored = _random((5, 8, 3), dtype, rng)
-    tifffile.imwrite(tmp_path / "in.tif", stored, photometric="rgb", extratags=[(0x0112, "H", 1, 6, True)])
+    tifffile.imwrite(tmp_path / "in.tif", stored, photometric="rgb", extratags=[(0x0112, "H", 1, orientation, True)])
     image, info = read_image(tmp_path / "in.tif")
-    np.testing.assert_array_equal(image, np.rot90(stored, -1))
+    np.testing.assert_array_equal(image, turn(stored))
     write_image(tmp_path / "applied.tif", image, info)
     assert _tiff_orientation(tmp_path / "applied.tif") == 1
     raw, raw_info = read_image(tmp_path / "in.tif", orientation="stored")
     np.testing.assert_array_equal(raw, stored)
     write_image(tmp_path / "stored.tif", raw, raw_info)
-    assert _tiff_orientation(tmp_path / "stored.tif") == 6
+    assert _tiff_orientation(tmp_path / "stored.tif") == orientation
     write_image(tmp_path / "stored.png", raw, raw_info)  # into another format, the tag goes along
-    assert read_image(tmp_path / "stored.png", orientation="stored")[1].orientation == 6
+    assert read_image(tmp_path / "stored.png", orientation="stored")[1].orientation == orientation
 
 
 def test_xmp_and_raw_profile_copies_of_the_tag_go_when_it_is_applied(tmp_path, rng):
