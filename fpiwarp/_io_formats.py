@@ -106,14 +106,16 @@ def format_for_path(path):
     raise ImageError(f"{path}: cannot tell the image format from the extension {ext or '(none)'!r}")
 
 
-def layout(array):
-    """(dtype, channels) of an image array; ImageError for other shapes."""
+def layout(array, path=None):
+    """(dtype, channels) of an image array; ImageError for other shapes,
+    naming the output ``path`` when given."""
     arr = np.asarray(array)
     if arr.ndim == 2:
         return arr.dtype, 1
     if arr.ndim == 3 and 1 <= arr.shape[2] <= 4:
         return arr.dtype, arr.shape[2]
-    raise ImageError(f"an image array must be (H, W) or (H, W, C) with C in 1..4, got shape {arr.shape}")
+    where = f"{path}: " if path is not None else ""
+    raise ImageError(f"{where}an image array must be (H, W) or (H, W, C) with C in 1..4, got shape {arr.shape}")
 
 
 def is_16_bit_colour(dtype, channels):

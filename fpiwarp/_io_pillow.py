@@ -166,6 +166,12 @@ def save_params(fmt, info, mode):
     return params
 
 
-def write_pillow(file, array, fmt, mode, info):
-    """Write ``array`` to the open binary ``file`` in ``fmt`` through Pillow."""
-    to_pillow(array, mode).save(file, format=fmt, **save_params(fmt, info, mode))
+def write_pillow(path, file, array, fmt, mode, info):
+    """Write ``array`` to the open binary ``file`` (the output ``path``) in
+    ``fmt`` through Pillow; a refusal of Pillow's encoder names ``path``."""
+    try:
+        to_pillow(array, mode).save(file, format=fmt, **save_params(fmt, info, mode))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        if isinstance(exc, OSError) and exc.errno is not None:
+            raise  # the file system's: atomic_write names the output
+        raise ImageError(f"{path}: Pillow cannot write this {mode} image as {fmt}: {exc}") from None

@@ -104,7 +104,7 @@ def write_image(path: str | os.PathLike, array, info: ImageInfo | None = None, *
     array, OutputExistsError when ``path`` exists and not ``overwrite``,
     OutputIsFolderError when it is a folder."""
     array = np.asarray(array)
-    dtype, channels = layout(array)
+    dtype, channels = layout(array, path)
     fmt = check_writable(path, dtype, channels, info)
     mode = pillow_mode(dtype, channels, info)
     if fmt == "PNG":
@@ -113,4 +113,4 @@ def write_image(path: str | os.PathLike, array, info: ImageInfo | None = None, *
     elif fmt == "TIFF" and is_16_bit_colour(dtype, channels):
         atomic_write(path, lambda f: write_tiff16(f, array, info), overwrite=overwrite)
     else:
-        atomic_write(path, lambda f: write_pillow(f, array, fmt, mode, info), overwrite=overwrite)
+        atomic_write(path, lambda f: write_pillow(path, f, array, fmt, mode, info), overwrite=overwrite)

@@ -318,6 +318,20 @@ def test_formats_refuse_what_they_cannot_store(tmp_path, name, shape, dtype, pro
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(
+    "name, array, problem",
+    [
+        ("a.bmp", np.zeros((4, 4, 2), np.uint8), "Pillow cannot write this LA image as BMP"),
+        ("a.png", np.zeros((4, 4, 5), np.uint8), "an image array must be"),
+    ],
+)
+def test_what_pillow_refuses_is_one_line_naming_the_file(tmp_path, name, array, problem):
+    with pytest.raises(ImageError, match=problem) as caught:
+        write_image(tmp_path / name, array)
+    assert str(caught.value).startswith(f"{tmp_path / name}: ") and "\n" not in str(caught.value)
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("name, module", [("a.png", "imagecodecs"), ("a.tif", "tifffile")])
 def test_16_bit_color_without_the_io_extra_says_what_to_install(tmp_path, rng, without, name, module):
     pytest.importorskip(module)
