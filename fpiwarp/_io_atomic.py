@@ -9,7 +9,9 @@ the user's path and the real problem, never the temporary file.
 import errno
 import os
 import secrets
+from collections.abc import Callable
 from pathlib import Path
+from typing import BinaryIO
 
 from ._io_errors import OutputExistsError, OutputIsFolderError
 
@@ -17,13 +19,13 @@ from ._io_errors import OutputExistsError, OutputIsFolderError
 TEMP_SUFFIX = ".fpiwarp-tmp"
 
 
-def is_temp_file(path):
+def is_temp_file(path: str | os.PathLike) -> bool:
     """True for the temporary files write_image creates (and removes)."""
     name = Path(path).name
     return name.startswith(".") and name.endswith(TEMP_SUFFIX)
 
 
-def check_output(path, *, overwrite=False):
+def check_output(path: str | os.PathLike, *, overwrite: bool = False) -> None:
     """Raise if ``path`` cannot become an output file: OutputIsFolderError
     for a folder, OutputExistsError for an existing file without
     ``overwrite``, FileNotFoundError when its folder does not exist."""
@@ -36,7 +38,7 @@ def check_output(path, *, overwrite=False):
         raise FileNotFoundError(errno.ENOENT, "output folder does not exist", str(path.parent))
 
 
-def atomic_write(path, write, *, overwrite=False):
+def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], object], *, overwrite: bool = False) -> None:
     """Call ``write(file)`` on a temporary file next to ``path``, then move
     it to ``path`` in one rename. Without ``overwrite`` an existing
     ``path`` is never replaced (OutputExistsError), even if it appears

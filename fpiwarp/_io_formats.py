@@ -9,10 +9,12 @@ before any warping, with a message naming the file.
 """
 
 import importlib
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import DTypeLike
 from PIL import Image
 
 from ._io_errors import ImageError, OutputIsFolderError
@@ -55,7 +57,7 @@ class ImageInfo:
     orientation: int = 1
 
 
-def have_pillow():
+def have_pillow() -> bool:
     """True when Pillow can be imported (always, in a complete install:
     Pillow is a core dependency); kept for code written when it was optional."""
     try:
@@ -94,7 +96,7 @@ _EXTENSIONS = {
 }
 
 
-def format_for_path(path):
+def format_for_path(path: str | os.PathLike) -> str:
     """The format name ("PNG", "JPEG", "TIFF", ...) that ``path``'s
     extension asks for; ImageError if it names none."""
     ext = Path(path).suffix.lower()
@@ -154,7 +156,9 @@ def describe(dtype, channels):
     return f"{_DTYPE_NAMES.get(dtype, str(dtype))} {_CHANNEL_NAMES.get(channels, f'{channels}-channel')}"
 
 
-def check_writable(path, dtype, channels, info=None):
+def check_writable(
+    path: str | os.PathLike, dtype: DTypeLike, channels: int, info: ImageInfo | None = None
+) -> str:
     """Raise ImageError if the format of ``path`` cannot store an image of
     this dtype and channel count without loss (or needs a codec that is not
     installed), OutputIsFolderError if ``path`` is a folder; return the
