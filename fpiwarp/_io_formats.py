@@ -156,9 +156,7 @@ def describe(dtype, channels):
     return f"{_DTYPE_NAMES.get(dtype, str(dtype))} {_CHANNEL_NAMES.get(channels, f'{channels}-channel')}"
 
 
-def check_writable(
-    path: str | os.PathLike, dtype: DTypeLike, channels: int, info: ImageInfo | None = None
-) -> str:
+def check_writable(path: str | os.PathLike, dtype: DTypeLike, channels: int, info: ImageInfo | None = None) -> str:
     """Raise ImageError if the format of ``path`` cannot store an image of
     this dtype and channel count without loss (or needs a codec that is not
     installed), OutputIsFolderError if ``path`` is a folder; return the

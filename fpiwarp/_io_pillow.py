@@ -67,22 +67,28 @@ def read_pillow(path, im):
     :func:`open_checked`: the pixels as stored, and the EXIF orientation
     they need for display."""
     try:
-        orientation = _orientation(im)
-        im.load()
+        tiff = im.format == "TIFF"
+        stored_tag = _orientation(im) if tiff else 1  # before loading: Pillow drops it when turning TIFF pixels
+        im.load()  # first for the others: a corrupt file must fail here, not inside getexif
+        orientation = stored_tag if tiff else _orientation(im)
         array, info = _from_pillow(im, path)
     except (OSError, SyntaxError, ValueError, struct.error) as exc:
         if isinstance(exc, (ImageError, FileNotFoundError, PermissionError)):
             raise
         raise ImageError(f"{path}: cannot read image: {exc}") from None
-    if im.format == "TIFF":
+    if tiff:
         array = to_stored(array, orientation)  # Pillow (10 and later) turns TIFF pixels while loading
     return array, info, orientation
 
 
 def _orientation(im):
-    """The EXIF orientation of an open image (TIFF: its own tag), 1..8."""
-    tags = im.tag_v2 if im.format == "TIFF" else im.getexif()
-    value = tags.get(ORIENTATION_TAG, 1)
+    """The EXIF orientation of an open image (TIFF: its own tag), 1..8; 1
+    when the EXIF is unreadable (the pixels are still good)."""
+    try:
+        tags = im.tag_v2 if im.format == "TIFF" else im.getexif()
+        value = tags.get(ORIENTATION_TAG, 1)
+    except (OSError, SyntaxError, ValueError, TypeError, KeyError, IndexError, struct.error):
+        return 1
     return value if isinstance(value, int) and 1 <= value <= 8 else 1
 
 

@@ -592,6 +592,15 @@ def test_xmp_and_raw_profile_copies_of_the_tag_go_when_it_is_applied(tmp_path, r
         assert im.size == (5, 8) and im.getexif().get(0x0112, 1) == 1
 
 
+@pytest.mark.filterwarnings("ignore:Corrupt EXIF data")  # Pillow says so, and so it is
+def test_unreadable_exif_does_not_stop_reading(tmp_path, rng):
+    image = _random((6, 7, 3), np.uint8, rng)
+    Image.fromarray(image).save(tmp_path / "a.png", exif=b"Exif\0\0MM\0*garbage")
+    back, info = read_image(tmp_path / "a.png")
+    np.testing.assert_array_equal(back, image)
+    assert info.orientation == 1
+
+
 def test_an_unknown_orientation_choice_is_refused(tmp_path, rng):
     write_image(tmp_path / "a.png", _random((4, 4), np.uint8, rng))
     with pytest.raises(ValueError, match="'apply', 'stored'"):
