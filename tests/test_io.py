@@ -10,6 +10,8 @@ import zlib
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from PIL import Image, ImageCms, ImageOps
 
 from fpiwarp import io
@@ -472,6 +474,51 @@ def test_the_pixel_limit_holds_for_every_codec(tmp_path, rng, name, shape, dtype
     assert read_image(tmp_path / name, max_pixels=1200)[0].shape == shape
     with pytest.raises(ImageError, match=r"40×30 = 1,200 pixels exceeds the limit of 1,199 pixels"):
         read_image(tmp_path / name, max_pixels=1199)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    width=st.integers(1, 2**31 - 1),
+    height=st.integers(1, 2**31 - 1),
+    kind=st.sampled_from(["png8", "png16rgb", "tiff8", "tiff16rgb"]),
+    data=st.data(),
+)
+def test_any_declared_size_over_the_limit_is_refused_from_the_header(tmp_path_factory, width, height, kind, data):
+    """Sizes up to PNG's 2**31-1 per side, limits below the pixel count:
+    refused with the header's size, whatever the codec, never decoded."""
+    if kind.startswith("tiff16"):
+        pytest.importorskip("tifffile")
+    max_pixels = data.draw(st.integers(0, width * height - 1), label="max_pixels")
+    path = tmp_path_factory.mktemp("declared") / kind
+    if kind == "png8":
+        path.write_bytes(_png(width, height, 8, 0, zlib.compress(b"\0" * 64)))
+    elif kind == "png16rgb":
+        path.write_bytes(_png(width, height, 16, 2, zlib.compress(b"\0" * 64)))
+    else:
+        path.write_bytes(_tiff_header_only(width, height, 1 if kind == "tiff8" else 3, 8 if kind == "tiff8" else 16))
+    with pytest.raises(ImageError, match=f"exceeds the limit of {max_pixels:,} pixels") as caught:
+        read_image(path, max_pixels=max_pixels)
+    assert str(path) in str(caught.value) and f"{width * height:,}" in str(caught.value)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    height=st.integers(1, 20),
+    width=st.integers(1, 20),
+    channels=st.integers(1, 4),
+    dtype=st.sampled_from([np.uint8, np.uint16]),
+    ext=st.sampled_from([".png", ".tif"]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_every_small_layout_round_trips_exactly(tmp_path_factory, height, width, channels, dtype, ext, seed):
+    shape = (height, width) if channels == 1 else (height, width, channels)
+    _needs_extra(shape, dtype, "PNG" if ext == ".png" else "TIFF")
+    image = _random(shape, dtype, np.random.default_rng(seed))
+    path = tmp_path_factory.mktemp("layout") / f"a{ext}"
+    write_image(path, image)
+    back, _ = read_image(path)
+    assert back.dtype == image.dtype
+    np.testing.assert_array_equal(back, image)
 
 
 def test_an_ordinary_16_bit_rgb_png_reads_in_well_under_a_second(tmp_path):
