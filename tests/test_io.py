@@ -532,7 +532,7 @@ def test_an_ordinary_16_bit_rgb_png_reads_in_well_under_a_second(tmp_path):
     path = tmp_path / "photo16.png"
     path.write_bytes(imagecodecs.png_encode(image, filter=imagecodecs.PNG.FILTER.PAETH))
     seconds = []
-    for _ in range(2):
+    for _ in range(3):  # the best of three: a shared machine's load is not the reader's
         start = time.perf_counter()
         back, _ = read_image(path)
         seconds.append(time.perf_counter() - start)
