@@ -77,16 +77,6 @@ def test_demo_never_overwrites_without_asking(tmp_path, capsys):
     assert code == 0 and io.read_image(out_path)[0].shape == (480, 640, 3)
 
 
-def test_demo_runs_without_pillow(tmp_path, capsys, monkeypatch):
-    for name in [m for m in sys.modules if m == "PIL" or m.startswith("PIL.")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "PIL", None)  # a numpy-only install
-    assert not io.have_pillow()
-    code, out, err = _run(capsys, "demo", tmp_path / "plain.png")
-    assert code == 0 and "K = " in out, err
-    assert io.read_image(tmp_path / "plain.png")[0].shape == (480, 640, 3)
-
-
 def test_python_dash_m_demo_uses_the_default_name(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "fpiwarp", "demo"], cwd=tmp_path, capture_output=True, text=True, check=False
