@@ -12,8 +12,12 @@ from ._errors import (
     DegenerateQuadError,
     FpiwarpError,
     InverseNotConvergedError,
+    ImageError,
     MissingDependencyError,
+    OutputExistsError,
+    OutputIsFolderError,
     SizeLimitError,
+    SpecError,
 )
 from ._constrained import ConstrainedFPI
 from ._fpi import FPI
@@ -26,9 +30,9 @@ from ._transform import Compound, Transform
 from ._warp import map_points, warp_image
 from .backends import available_backends, backend_capabilities, backend_status
 from .batch import warp_batch, warp_images
-from .io import ImageError, OutputExistsError, read_image, write_image
+from .io import read_image, write_image
 from .positions import source_positions
-from .spec import SpecError, load_spec
+from .spec import load_spec
 
 __version__ = "0.1.0"
 
@@ -48,6 +52,7 @@ __all__ = [
     "MissingDependencyError",
     "Mobius",
     "OutputExistsError",
+    "OutputIsFolderError",
     "RLinear",
     "SizeLimitError",
     "SpecError",

@@ -11,6 +11,7 @@ or file and the problem.
 """
 
 import errno
+from pathlib import Path
 
 __all__ = [
     "ArgumentError",
@@ -23,6 +24,7 @@ __all__ = [
     "InverseNotConvergedError",
     "MissingDependencyError",
     "OutputExistsError",
+    "OutputIsFolderError",
     "SizeLimitError",
     "SpecError",
 ]
@@ -89,6 +91,18 @@ class OutputExistsError(FpiwarpError, FileExistsError):
 
     def __str__(self):
         return f"{self.filename} already exists (pass overwrite=True to replace it)"
+
+
+class OutputIsFolderError(FpiwarpError, IsADirectoryError):
+    """The output path names a folder: no image can be written there, with or
+    without overwriting."""
+
+    def __init__(self, path):
+        super().__init__(errno.EISDIR, "the output is a folder, not a file name", str(path))
+
+    def __str__(self):
+        example = Path(self.filename) / "out.png"
+        return f"{self.filename} is a folder; give the output a file name (such as {example})"
 
 
 class SpecError(FpiwarpError, ValueError):

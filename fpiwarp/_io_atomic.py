@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
 
-from ._io_errors import OutputExistsError, OutputIsFolderError
+from ._errors import OutputExistsError, OutputIsFolderError
 
 #: Suffix of the temporary files; batches skip files that end in it.
 TEMP_SUFFIX = ".fpiwarp-tmp"

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import DTypeLike
 from PIL import Image
 
-from ._io_errors import ImageError, OutputIsFolderError
+from ._errors import ImageError, OutputIsFolderError
 
 #: Default largest image read, in pixels: where Pillow itself refuses an
 #: image (twice its warning size, 178,956,970 px, e.g. 16384×10922).

@@ -11,7 +11,7 @@ import struct
 import numpy as np
 from PIL import Image, JpegImagePlugin, UnidentifiedImageError
 
-from ._io_errors import ImageError
+from ._errors import ImageError
 from ._io_formats import ImageInfo, check_pixel_count
 from ._io_orientation import ORIENTATION_TAG, to_stored
 

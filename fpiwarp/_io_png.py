@@ -15,7 +15,7 @@ from io import BytesIO
 
 import numpy as np
 
-from ._io_errors import ImageError
+from ._errors import ImageError
 from ._io_formats import ImageInfo, check_pixel_count, is_16_bit_colour, optional_codec
 from ._io_orientation import orientation_of
 from ._io_pillow import open_checked, read_pillow, to_pillow

@@ -10,7 +10,7 @@ from io import BytesIO
 
 import numpy as np
 
-from ._io_errors import ImageError
+from ._errors import ImageError
 from ._io_formats import INSTALL_IO, ImageInfo, check_pixel_count, optional_codec
 from ._io_pillow import open_checked, read_pillow, tiff_bits
 

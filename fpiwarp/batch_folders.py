@@ -156,15 +156,14 @@ def reason_of(exc):
 
 
 #: What makes one file fail without stopping the batch: fpiwarp's own
-#: errors and the operating system's, plus ValueError (ImageError is one
-#: until io.py takes it from fpiwarp._errors, and codecs raise it).
-FILE_ERRORS = (FpiwarpError, OSError, ValueError)
+#: errors and the operating system's (anything else is a bug, and stops it).
+FILE_ERRORS = (FpiwarpError, OSError)
 
 
 def process_file(src, dst, warper, overwrite):
     """Read, warp and write one file; return (status, input path, reason)."""
     try:
-        if not overwrite and dst.exists():
+        if not overwrite and dst.is_file():
             return "skipped", str(src), None
         image, info = read_image(src)
         dtype, channels = image.dtype, (1 if image.ndim == 2 else image.shape[2])
@@ -291,7 +290,7 @@ class _Read:
 
     def __init__(self, src, dst, overwrite):
         self.src, self.dst = src, dst
-        if not overwrite and dst.exists():
+        if not overwrite and dst.is_file():
             self.result = ("skipped", str(src), None)
             return
         self.result = None

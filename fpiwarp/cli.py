@@ -36,16 +36,16 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from ._errors import ArgumentError, BackendUnavailableError, FpiwarpError
+from ._errors import ArgumentError, BackendUnavailableError, FpiwarpError, OutputExistsError, OutputIsFolderError
 from ._fpi import FPI
 from ._local import LocalDeformation
 from ._sampling import MODES, ORDERS
 from ._warp import warp_image
 from .backends import REGISTRY, backend_status
 from .batch import BatchSummary, Progress, list_inputs, run_batch
-from .io import ImageError, OutputExistsError, check_writable, read_image, write_image
+from .io import check_writable, read_image, write_image
 from .metrics import grid
-from .spec import SpecError, load_spec
+from .spec import load_spec
 
 #: The demo's target corners, as fractions of (width - 1, height - 1); the
 #: source corners are the image's own, clockwise on screen from top left.
@@ -155,6 +155,8 @@ def _same_file(a, b):
 def _check_output(input_path, output, overwrite):
     if input_path is not None and _same_file(input_path, output):
         raise UsageError(f"the output {output} is the input file; inputs are never modified, choose another name")
+    if Path(output).is_dir():
+        raise OutputIsFolderError(output)
     if not overwrite and Path(output).exists():
         raise OutputExistsError(output)
 
@@ -414,9 +416,7 @@ def _message(exc):
 
 
 #: Exceptions that mean the user asked for something impossible: one line.
-#: ImageError and SpecError are listed until io.py and spec.py take them
-#: from fpiwarp._errors (where they derive from FpiwarpError).
-USER_ERRORS = (FpiwarpError, OSError, ImageError, SpecError)
+USER_ERRORS = (FpiwarpError, OSError)
 
 
 def main(argv=None):

@@ -17,8 +17,9 @@ Pillow reads and writes every format it knows; 16-bit colour PNG and TIFF
 :data:`MAX_PIXELS`) are refused from their header, before decoding. The
 parts live in modules of their own: ``_io_formats`` (what each format
 stores), ``_io_png``, ``_io_pillow``, ``_io_tiff`` (codecs),
-``_io_orientation`` (EXIF orientation), ``_io_atomic`` (atomic writes) and
-``_io_errors``.
+``_io_orientation`` (EXIF orientation) and ``_io_atomic`` (atomic writes);
+their errors are fpiwarp's own (``ImageError``, ``OutputExistsError``,
+``OutputIsFolderError``).
 """
 
 import os
@@ -27,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ._io_atomic import TEMP_SUFFIX, atomic_write, check_output, is_temp_file
-from ._io_errors import ImageError, OutputExistsError, OutputIsFolderError
+from ._errors import ImageError, OutputExistsError, OutputIsFolderError
 from ._io_formats import (
     INSTALL_IO,
     MAX_PIXELS,

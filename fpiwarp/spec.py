@@ -26,14 +26,14 @@ which field is wrong, and :func:`build_transform` also checks the geometry
 >>> validate_spec({"steps": [{"src": [[0, 0], [1, 0], [1, 1]], "dst": []}]})
 Traceback (most recent call last):
 ...
-fpiwarp.spec.SpecError: steps[0].src: must be a list of 4 [x, y] points, got a list of 3 items
+fpiwarp.SpecError: steps[0].src: must be a list of 4 [x, y] points, got a list of 3 items
 """
 
 import json
 import numbers
 from importlib import resources
 
-from ._errors import DegenerateQuadError
+from ._errors import DegenerateQuadError, SpecError
 from ._fpi import FPI
 from ._transform import Compound
 
@@ -46,11 +46,6 @@ FIELDS = {
     "local": ("src", "dst", "edges"),
     "compound": ("steps",),
 }
-
-
-class SpecError(ValueError):
-    """A spec that is not valid; the message starts with the field's path
-    (``steps[1].dst[2]``) and says what is wrong with it."""
 
 
 def _where(path, name):
