@@ -25,8 +25,8 @@ HIERARCHY = [
     (fpiwarp.OutputIsFolderError, IsADirectoryError),
     (fpiwarp.SpecError, ValueError),
 ]
-#: Defined by io.py and spec.py, which take them from fpiwarp._errors once
-#: the restructuring lands; until then they are not FpiwarpErrors.
+
+
 @pytest.mark.parametrize("cls, standard", HIERARCHY)
 def test_errors_are_fpiwarp_errors_and_keep_their_standard_base(cls, standard):
     assert issubclass(cls, fpiwarp.FpiwarpError) and issubclass(cls, standard)
