@@ -11,7 +11,7 @@ import uuid
 from pathlib import Path
 
 from ._errors import MissingDependencyError
-from .batch_folders import process_file
+from .batch_file import process_file
 
 __all__ = ["DASK_CONNECT_TIMEOUT", "run_on_dask"]
 

@@ -18,8 +18,9 @@ from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ._errors import ArgumentError, FpiwarpError
-from .io import TEMP_SUFFIX, OutputExistsError, check_writable, is_temp_file, read_image, write_image
+from ._errors import ArgumentError, FpiwarpError, OutputExistsError
+from .batch_file import FILE_ERRORS, process_file, reason_of
+from .io import TEMP_SUFFIX, check_writable, is_temp_file, read_image, write_image
 from .warper import Warper
 
 __all__ = ["STALE_TEMP_SECONDS", "BatchSummary", "list_inputs", "process_file", "run_batch"]
@@ -145,37 +146,6 @@ def sweep_temporaries(output_dir, summary, now=None):
                 summary.recent_temps.append(str(path))
         except FileNotFoundError:  # its run just renamed or removed it
             continue
-
-
-def reason_of(exc):
-    """The one-line reason a file failed."""
-    text = str(exc)
-    if isinstance(exc, OSError) and exc.strerror:
-        text = exc.strerror
-    return text if isinstance(exc, (FpiwarpError, OSError, ValueError)) else f"{type(exc).__name__}: {text}"
-
-
-#: What makes one file fail without stopping the batch: fpiwarp's own
-#: errors and the operating system's (anything else is a bug, and stops it).
-FILE_ERRORS = (FpiwarpError, OSError)
-
-
-def process_file(src, dst, warper, overwrite):
-    """Read, warp and write one file; return (status, input path, reason)."""
-    try:
-        if not overwrite and dst.is_file():
-            return "skipped", str(src), None
-        image, info = read_image(src)
-        dtype, channels = image.dtype, (1 if image.ndim == 2 else image.shape[2])
-        check_writable(dst, dtype, channels, info)
-        out = warper(image)
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        write_image(dst, out, info, overwrite=overwrite)
-        return "done", str(src), None
-    except OutputExistsError:
-        return "skipped", str(src), None
-    except FILE_ERRORS as exc:
-        return "failed", str(src), reason_of(exc)
 
 
 def run_batch(
