@@ -9,6 +9,7 @@ the FPI of the swapped quads, exact and with the same K.
 
 import numpy as np
 
+from ._exactness import check_exact
 from ._linear import RLinear
 from ._points import as_xy
 from ._quad import check_quad_pair, parallelogram_mobius
@@ -71,6 +72,7 @@ class FPI(Transform):
             m_src, linear, m_dst = m_src.conjugated(), linear.conjugated(), m_dst.conjugated()
             z, w = np.conj(z), np.conj(w)
         self._init_parts(z, w, m_src, linear, m_dst)
+        check_exact(self, z, w)  # refuse what float64 could not build exactly
 
     def _init_parts(self, z, w, m_src, linear, m_dst):
         self._z, self._w = z, w
