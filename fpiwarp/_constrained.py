@@ -30,6 +30,8 @@ each offset point.
 
 import numpy as np
 
+from ._exactness import check_corners
+from ._foldover import refuse_fold
 from ._fpi import _centered_at_zero
 from ._linear import RLinear
 from ._mobius import Mobius, _matmul
@@ -185,6 +187,8 @@ class ConstrainedFPI(Transform):
         self.edges, self.kind = edges, kind
         self.points_per_edge, self.delta = k, delta
         self.constraints = (_xy(pz if not flip else np.conj(pz)), _xy(pw if not flip else np.conj(pw)))
+        check_corners(self, z, w)  # ill-conditioned quads: refuse rather than miss a corner
+        refuse_fold(self, z, "the constrained FPI")
 
     def _init_parts(self, z, w, pre, core, post):
         self._z, self._w = z, w

@@ -77,17 +77,17 @@ def _inside_box(c, p):
 def _refuse(what, err, allowed, K):
     """Raise IllConditionedPairError; err and allowed are relative to the quad's radius."""
     raise IllConditionedPairError(
-        f"src -> dst is too ill-conditioned for float64 (K = {K:.3g}): {what} by "
+        f"src -> dst is too ill-conditioned for float64{'' if K is None else f' (K = {K:.3g})'}: {what} by "
         f"{err:.2g} of the quad's size, beyond the limit {allowed:.2g} (thin quads "
         "or a large distortion lose digits); use fatter quads or a smaller distortion"
     )
 
 
 def check_corners(f, z, w):
-    """Refuse f (any map with ``_map`` and ``K``) if it misses w's corners."""
+    """Refuse the map f (any Transform) if it misses w's corners."""
     err = float(np.max(np.abs(f._map(z) - w)))
     if not err <= allowed_error(w):
-        _refuse("the map misses the dst corners", err / radius(w), allowed_error(w) / radius(w), f.K)
+        _refuse("the map misses the dst corners", err / radius(w), allowed_error(w) / radius(w), getattr(f, "K", None))
 
 
 def check_exact(f, z, w):

@@ -145,7 +145,7 @@ def classify(z, w, rng):
     try:
         f = fpiwarp.FPI(z, w)
     except Exception as exc:  # noqa: BLE001 - counting every class is the point
-        words = " ".join(str(exc).replace(":", " ").split()[1:4])
+        words = " ".join(str(exc).split(":")[0].split()[1:6])  # the problem, without the quad's name
         return ("refused", f"{type(exc).__name__}: {words}"), None
     if not f.K >= 1:
         return ("accepted", "K < 1"), f.K
