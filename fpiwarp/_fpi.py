@@ -48,6 +48,12 @@ class FPI(Transform):
     pole z∞ onto the plane minus its image w∞, and has the constant
     conformal distortion ``K``.
 
+    Invalid quads raise DegenerateQuadError. A pair that float64 cannot
+    build exactly (thin quads, K > 1e6) raises IllConditionedPairError, a
+    DegenerateQuadError: every map built meets its corners, its inverse's
+    corners and round trips around ``src`` within 1e-9 of the quad's size
+    plus the rounding of the coordinates (see :mod:`fpiwarp._exactness`).
+
     >>> f = FPI([[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [2, 0], [2, 1], [0, 1]])
     >>> round(f.K, 12)
     2.0
