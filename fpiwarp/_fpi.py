@@ -9,7 +9,7 @@ the FPI of the swapped quads, exact and with the same K.
 
 import numpy as np
 
-from ._exactness import check_exact
+from ._exactness import IllConditionedPairError, check_exact
 from ._linear import RLinear
 from ._points import as_xy
 from ._quad import check_quad_pair, parallelogram_mobius
@@ -29,13 +29,24 @@ def _parallelogram_frame(p):
 
 
 def affine_between(p, r):
-    """The R-linear map taking parallelogram p to parallelogram r (eq. 3-4)."""
+    """The R-linear map taking parallelogram p to parallelogram r (eq. 3-4).
+
+    Raises IllConditionedPairError where rounding has made it singular
+    (|l1| == |l2|, K infinite: the quads are too thin for float64)."""
     cp, pa, pb = _parallelogram_frame(p)
     cr, ra, rb = _parallelogram_frame(r)
     det = pa * np.conj(pb) - np.conj(pa) * pb
-    l1 = (ra * np.conj(pb) - np.conj(pa) * rb) / det
-    l2 = (pa * rb - pb * ra) / det
-    return RLinear(l1, l2, cr - l1 * cp - l2 * np.conj(cp))
+    with np.errstate(all="ignore"):
+        l1 = (ra * np.conj(pb) - np.conj(pa) * rb) / det
+        l2 = (pa * rb - pb * ra) / det
+        l3 = cr - l1 * cp - l2 * np.conj(cp)
+    try:
+        return RLinear(l1, l2, l3)
+    except ValueError as exc:
+        raise IllConditionedPairError(
+            f"src -> dst is too ill-conditioned for float64: the affine map between their "
+            f"parallelograms is singular ({exc}); use fatter quads or a smaller distortion"
+        ) from None
 
 
 class FPI(Transform):

@@ -140,12 +140,28 @@ def measure(f, z, w, rng):
     return corner, inv_corner, trip
 
 
+#: What an ill-conditioned pair's message says failed (counted separately).
+ILL_CONDITIONED_REASONS = (
+    "exceeds the limit",
+    "is not >= 1",
+    "parallelograms is singular",
+    "misses the dst corners",
+    "inverse misses the src corners",
+    "round trip",
+)
+
+
 def classify(z, w, rng):
     """('refused', reason) or ('accepted', problem or 'ok'), plus the map's K (or None)."""
     try:
         f = fpiwarp.FPI(z, w)
     except Exception as exc:  # noqa: BLE001 - counting every class is the point
-        words = " ".join(str(exc).split(":")[0].split()[1:6])  # the problem, without the quad's name
+        message = str(exc)
+        words = " ".join(message.split(":")[0].split()[1:6])  # the problem, without the quad's name
+        for phrase in ILL_CONDITIONED_REASONS:
+            if phrase in message:
+                words = phrase
+                break
         return ("refused", f"{type(exc).__name__}: {words}"), None
     if not f.K >= 1:
         return ("accepted", "K < 1"), f.K
