@@ -155,11 +155,12 @@ class ConstrainedFPI(Transform):
     ``inverse`` is numerical: m_Z⁻¹ ∘ phi⁻¹ ∘ m_W with phi⁻¹ by Newton's
     method (converged to 1e-9 relative or InverseNotConvergedError).
 
-    A fit that folds over inside ``src`` (Jacobian determinant <= 0 at one
-    of the samples of :mod:`fpiwarp._foldover`: a 32 × 32 grid over the
-    quad and 64 points per edge) raises FoldOverError, a ValueError: such
-    a map is not one-to-one and its inverse would return one of several
-    preimages. A fit that misses a corner by more than 1e-9 of the quad's
+    A fit that folds over inside ``src`` raises FoldOverError, a
+    ValueError: such a map is not one-to-one and its inverse would return
+    one of several preimages. It is found where the Jacobian determinant
+    is at most 1% of its median at one of the samples of
+    :mod:`fpiwarp._foldover` (a 32 × 32 grid over the quad, 64 points per
+    edge, fans around the corners). A fit that misses a corner by more than 1e-9 of the quad's
     size raises IllConditionedPairError.
 
     >>> sq = [[0, 0], [2, 0], [2, 1], [0, 1]]
