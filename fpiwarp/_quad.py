@@ -48,7 +48,10 @@ def signed_area(z):
 def _as_float_points(points, name):
     """points as a float64 array, refusing what would be converted silently:
     complex numbers (the imaginary part would be dropped) and text."""
-    raw = np.asarray(points) if not isinstance(points, np.ndarray) else points
+    try:
+        raw = np.asarray(points)
+    except (TypeError, ValueError) as exc:  # ragged lists
+        raise DegenerateQuadError(f"{name} must be four numeric (x, y) points: {exc}") from None
     values = raw.ravel() if raw.dtype == object else ()
     if raw.dtype.kind == "c" or any(isinstance(v, (complex, np.complexfloating)) for v in values):
         raise DegenerateQuadError(f"{name} must be real (x, y) points, got complex numbers")

@@ -200,6 +200,13 @@ def test_text_quads_are_refused(bad):
         FPI(bad, D)
 
 
+@pytest.mark.parametrize("bad", [[[0, 0], [1], [1, 1], [0, 1]], [[0, 0], [1, 0], [1, 1]], "abcd", None])
+def test_malformed_quads_are_one_line_degenerate_quad_errors(bad):
+    with pytest.raises(DegenerateQuadError) as info:
+        FPI(bad, D)
+    assert "\n" not in str(info.value) and str(info.value).startswith("src ")
+
+
 @pytest.mark.parametrize("value", [1.0000001e100, 1e200, -1e308])
 def test_coordinates_beyond_the_limit_are_refused_with_the_point(value):
     q = SQ.copy()
