@@ -31,6 +31,8 @@ each offset point.
 import numpy as np
 
 from ._errors import ArgumentTypeError, ConstraintError
+from ._exactness import check_corners
+from ._foldover import refuse_fold
 from ._linear import RLinear
 from ._mobius import Mobius, centered_at_zero, mobius_product
 from ._quad import check_quad_pair, parallelogram_mobius, signed_area
@@ -153,6 +155,14 @@ class ConstrainedFPI(Transform):
     ``inverse`` is numerical: m_Z⁻¹ ∘ phi⁻¹ ∘ m_W with phi⁻¹ by Newton's
     method (converged to 1e-9 relative or InverseNotConvergedError).
 
+    A fit that folds over inside ``src`` raises FoldOverError, a
+    ValueError: such a map is not one-to-one and its inverse would return
+    one of several preimages. It is found where the Jacobian determinant
+    is at most 1% of its median at one of the samples of
+    :mod:`fpiwarp._foldover` (a 32 × 32 grid over the quad, 64 points per
+    edge, fans around the corners). A fit that misses a corner by more than 1e-9 of the quad's
+    size raises IllConditionedPairError.
+
     >>> sq = [[0, 0], [2, 0], [2, 1], [0, 1]]
     >>> f = ConstrainedFPI(sq, [[0, 0], [2, 0], [2.2, 1.1], [0, 1]], edges=(3, 1))
     >>> np.round(f(sq), 9).tolist()[2]
@@ -185,6 +195,8 @@ class ConstrainedFPI(Transform):
         self.edges, self.kind = edges, kind
         self.points_per_edge, self.delta = k, delta
         self.constraints = (_xy(pz if not flip else np.conj(pz)), _xy(pw if not flip else np.conj(pw)))
+        check_corners(self, z, w)  # ill-conditioned quads: refuse rather than miss a corner
+        refuse_fold(self, z, "the constrained FPI")
 
     def _init_parts(self, z, w, pre, core, post):
         self._z, self._w = z, w

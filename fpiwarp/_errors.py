@@ -19,7 +19,9 @@ __all__ = [
     "BackendUnavailableError",
     "ConstraintError",
     "DegenerateQuadError",
+    "FoldOverError",
     "FpiwarpError",
+    "IllConditionedPairError",
     "ImageError",
     "InverseNotConvergedError",
     "MissingDependencyError",
@@ -59,9 +61,20 @@ class DegenerateQuadError(FpiwarpError, ValueError):
     """
 
 
+class IllConditionedPairError(DegenerateQuadError):
+    """A quad pair valid on paper whose map float64 cannot build exactly
+    (thin quads, large distortion): the message names the measured error
+    and the limit."""
+
+
 class ConstraintError(FpiwarpError, ValueError):
     """Edge constraints of a :class:`~fpiwarp.ConstrainedFPI` (or a local
     deformation) that no map can satisfy, or options out of range."""
+
+
+class FoldOverError(ConstraintError):
+    """A constrained map that is not one-to-one over its region of interest:
+    its Jacobian determinant changes sign there (the message says where)."""
 
 
 class BackendUnavailableError(FpiwarpError, RuntimeError):

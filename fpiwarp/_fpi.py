@@ -9,6 +9,8 @@ the FPI of the swapped quads, exact and with the same K.
 
 import numpy as np
 
+from ._errors import IllConditionedPairError
+from ._exactness import check_exact
 from ._linear import RLinear
 from ._mobius import centered_at_zero
 from ._points import as_xy
@@ -29,13 +31,24 @@ def _parallelogram_frame(p):
 
 
 def affine_between(p, r):
-    """The R-linear map taking parallelogram p to parallelogram r (eq. 3-4)."""
+    """The R-linear map taking parallelogram p to parallelogram r (eq. 3-4).
+
+    Raises IllConditionedPairError where rounding has made it singular
+    (|l1| == |l2|, K infinite: the quads are too thin for float64)."""
     cp, pa, pb = _parallelogram_frame(p)
     cr, ra, rb = _parallelogram_frame(r)
     det = pa * np.conj(pb) - np.conj(pa) * pb
-    l1 = (ra * np.conj(pb) - np.conj(pa) * rb) / det
-    l2 = (pa * rb - pb * ra) / det
-    return RLinear(l1, l2, cr - l1 * cp - l2 * np.conj(cp))
+    with np.errstate(all="ignore"):
+        l1 = (ra * np.conj(pb) - np.conj(pa) * rb) / det
+        l2 = (pa * rb - pb * ra) / det
+        l3 = cr - l1 * cp - l2 * np.conj(cp)
+    try:
+        return RLinear(l1, l2, l3)
+    except ValueError as exc:
+        raise IllConditionedPairError(
+            f"src -> dst is too ill-conditioned for float64: the affine map between their "
+            f"parallelograms is singular ({exc}); use fatter quads or a smaller distortion"
+        ) from None
 
 
 class FPI(Transform):
@@ -47,6 +60,12 @@ class FPI(Transform):
     sends ``src[j]`` to ``dst[j]``, is a bijection of the plane minus the
     pole z∞ onto the plane minus its image w∞, and has the constant
     conformal distortion ``K``.
+
+    Invalid quads raise DegenerateQuadError. A pair that float64 cannot
+    build exactly (thin quads, K > 1e6) raises IllConditionedPairError, a
+    DegenerateQuadError: every map built meets its corners, its inverse's
+    corners and round trips around ``src`` within 1e-9 of the quad's size
+    plus the rounding of the coordinates (see :mod:`fpiwarp._exactness`).
 
     >>> f = FPI([[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [2, 0], [2, 1], [0, 1]])
     >>> round(f.K, 12)
@@ -72,6 +91,7 @@ class FPI(Transform):
             m_src, linear, m_dst = m_src.conjugated(), linear.conjugated(), m_dst.conjugated()
             z, w = np.conj(z), np.conj(w)
         self._init_parts(z, w, m_src, linear, m_dst)
+        check_exact(self, z, w)  # refuse what float64 could not build exactly
 
     def _init_parts(self, z, w, m_src, linear, m_dst):
         self._z, self._w = z, w

@@ -26,67 +26,114 @@ ALTERNATING = (1.0, -1.0, 1.0, -1.0)
 PARALLELOGRAM_TOL = 1e-14
 #: Relative tolerance below which points coincide or are collinear.
 DEGENERACY_TOL = 1e-9
+#: Largest |x| or |y| of a quad point: products of three coordinates (the
+#: Möbius coefficients, squared distances times a coordinate) stay finite.
+MAX_COORDINATE = 1e100
 
 
 def signed_area(z):
     """Shoelace area of the polygon z (complex), > 0 for counter-clockwise
-    in (x, y) coordinates (which is clockwise on screen, y down)."""
+    in (x, y) coordinates (which is clockwise on screen, y down).
+
+    Computed from the points relative to their centroid, so the sign does
+    not depend on where in the plane the polygon sits (in absolute
+    coordinates the products of large coordinates cancel catastrophically).
+    """
     z = [complex(v) for v in z]
-    return 0.5 * sum((a.conjugate() * b).imag for a, b in zip(z, z[1:] + z[:1]))
+    center = sum(v / len(z) for v in z)
+    u = [v - center for v in z]
+    return 0.5 * sum((a.conjugate() * b).imag for a, b in zip(u, u[1:] + u[:1]))
+
+
+def _as_float_points(points, name):
+    """points as a float64 array, refusing what would be converted silently:
+    complex numbers (the imaginary part would be dropped) and text."""
+    try:
+        raw = np.asarray(points)
+    except (TypeError, ValueError) as exc:  # ragged lists
+        raise DegenerateQuadError(f"{name} must be four numeric (x, y) points: {exc}") from None
+    values = raw.ravel() if raw.dtype == object else ()
+    if raw.dtype.kind == "c" or any(isinstance(v, (complex, np.complexfloating)) for v in values):
+        raise DegenerateQuadError(f"{name} must be real (x, y) points, got complex numbers")
+    if raw.dtype.kind in "USa" or any(isinstance(v, (str, bytes)) for v in values):
+        raise DegenerateQuadError(f"{name} must be four numeric (x, y) points, got text")
+    try:
+        return np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise DegenerateQuadError(f"{name} must be four numeric (x, y) points: {exc}") from None
 
 
 def check_quad(points, name="quad"):
     """Validate four (x, y) points; return them as complex128 of shape (4,).
 
-    Raises DegenerateQuadError naming what is wrong: wrong shape or dtype,
-    NaN or inf, coincident points, three collinear points, zero area, or
-    self-intersecting (bow-tie) edges. Non-convex simple quads are fine.
+    Raises DegenerateQuadError naming what is wrong: wrong shape or dtype
+    (complex or text included), NaN or inf, a coordinate beyond
+    ±MAX_COORDINATE, coincident points, three collinear points, zero area,
+    or self-intersecting (bow-tie) edges. Non-convex simple quads are fine.
+    Every test is made on the points relative to their centroid, divided
+    by the quad's radius, so it does not change when the quad is moved or
+    scaled.
     """
-    try:
-        arr = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise DegenerateQuadError(f"{name} must be four numeric (x, y) points: {exc}") from None
+    arr = _as_float_points(points, name)
     if arr.shape != (4, 2):
         raise DegenerateQuadError(f"{name} must have shape (4, 2), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise DegenerateQuadError(f"{name} contains NaN or inf: {arr.tolist()}")
+    big = np.flatnonzero(np.abs(arr).max(axis=1) > MAX_COORDINATE)
+    if big.size:
+        k = int(big[0])
+        raise DegenerateQuadError(
+            f"{name} point {k} {arr[k].tolist()} lies beyond ±{MAX_COORDINATE:g}, the largest "
+            "coordinate whose products of three stay finite in float64"
+        )
     z = arr[:, 0] + 1j * arr[:, 1]
-    zs = [complex(v) for v in z]
-    center = sum(zs) / 4
-    scale = max(abs(v - center) for v in zs)
+    u, scale = _normalized(z)
     if scale == 0:
         raise DegenerateQuadError(f"{name} has all four points coincident")
     for i, j in itertools.combinations(range(4), 2):
-        if abs(zs[i] - zs[j]) <= DEGENERACY_TOL * scale:
+        if abs(u[i] - u[j]) <= DEGENERACY_TOL:
             raise DegenerateQuadError(f"{name} points {i} and {j} coincide: {arr[i].tolist()}")
     for tri in itertools.combinations(range(4), 3):
-        a, b, c = (zs[k] for k in tri)
-        if abs(((b - a) * (c - a).conjugate()).imag) <= DEGENERACY_TOL * scale**2:
+        a, b, c = (u[k] for k in tri)
+        if abs(_cross(c - a, b - a)) <= DEGENERACY_TOL:
             raise DegenerateQuadError(f"{name} points {tri} are collinear")
     for e, f in ((0, 2), (1, 3)):
-        if _segments_cross(zs[e], zs[(e + 1) % 4], zs[f], zs[(f + 1) % 4]):
+        if _segments_cross(u[e], u[(e + 1) % 4], u[f], u[(f + 1) % 4]):
             raise DegenerateQuadError(
                 f"{name} is self-intersecting (bow-tie): edge {e}-{(e + 1) % 4} "
                 f"crosses edge {f}-{(f + 1) % 4}"
             )
-    if abs(signed_area(zs)) <= DEGENERACY_TOL * scale**2:
+    if abs(signed_area(u)) <= DEGENERACY_TOL:
         raise DegenerateQuadError(f"{name} has zero area")
     return z
 
 
-def check_quad_pair(src, dst):
+def _normalized(z):
+    """(u, scale): the points relative to their centroid divided by the
+    largest distance from it (so |u| <= 1), and that distance."""
+    zs = [complex(v) for v in z]
+    center = sum(v / 4 for v in zs)
+    d = [v - center for v in zs]
+    scale = max(abs(v) for v in d)
+    if scale == 0:
+        return d, 0.0
+    return [v / scale for v in d], scale
+
+
+def check_quad_pair(src, dst, names=("src", "dst")):
     """Validate a source and a target quad of the same orientation.
 
     Returns (z, w, clockwise): the quads as complex128 (4,) and whether
     they run clockwise in (x, y), where the closed forms (written for
-    counter-clockwise quads) solve the mirrored problem.
+    counter-clockwise quads) solve the mirrored problem. ``names`` name
+    the two quads in messages.
     """
-    z = check_quad(src, "src")
-    w = check_quad(dst, "dst")
+    z = check_quad(src, names[0])
+    w = check_quad(dst, names[1])
     clockwise = signed_area(z) < 0
     if clockwise != (signed_area(w) < 0):
         raise DegenerateQuadError(
-            "src and dst have opposite orientations (one is clockwise, the other "
+            f"{names[0]} and {names[1]} have opposite orientations (one is clockwise, the other "
             "counter-clockwise): no orientation-preserving map joins them"
         )
     return z, w, clockwise

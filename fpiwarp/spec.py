@@ -13,7 +13,12 @@ Three kinds of spec, told apart by their fields (or by an optional
   the first to the source image (:class:`fpiwarp.Compound`).
 
 Every object may also carry ``"description"`` (text) and ``"$schema"``.
-Coordinates are pixels: x = column, y = row, pixel centers at integers.
+Coordinates are pixels: x = column, y = row, pixel centers at integers,
+at most ±1e100 (``MAX_COORDINATE``). Compounds nest at most
+``MAX_NESTING`` (32) levels of ``"steps"``, and JSON text at most
+``MAX_JSON_DEPTH`` (68) brackets deep, enough for that; deeper specs are
+refused with one line, before anything recurses. A UTF-8 byte-order mark
+at the start of the text is ignored.
 The JSON schema of this format ships as ``fpiwarp/data/spec.schema.json``
 (see :func:`schema`); :func:`validate_spec` checks the same rules and says
 which field is wrong, and :func:`build_transform` also checks the geometry
@@ -31,10 +36,12 @@ fpiwarp.SpecError: steps[0].src: must be a list of 4 [x, y] points, got a list o
 
 import json
 import numbers
+import re
 from importlib import resources
 
 from ._errors import DegenerateQuadError, SpecError
 from ._fpi import FPI
+from ._quad import MAX_COORDINATE, check_quad
 from ._transform import Compound
 
 __all__ = ["SpecError", "build_transform", "load_spec", "parse_spec", "save_spec", "schema", "to_spec", "validate_spec"]
@@ -46,6 +53,15 @@ FIELDS = {
     "local": ("src", "dst", "edges"),
     "compound": ("steps",),
 }
+
+
+#: Most levels of "steps" inside "steps".
+MAX_NESTING = 32
+#: Most brackets ([ or {) open at once in spec text: a compound level takes
+#: two (the object and its "steps" list), the innermost map four (object,
+#: quad, point, and one to spare).
+MAX_JSON_DEPTH = 2 * MAX_NESTING + 4
+_JSON_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
 
 
 def _where(path, name):
@@ -70,6 +86,14 @@ def _describe(value):
     if isinstance(value, str):
         return f"the text {value!r}"
     return repr(value)
+
+
+def _short(number):
+    """A number in a few characters, even an integer too large for a float."""
+    try:
+        return format(number, ".6g")
+    except OverflowError:
+        return f"an integer of {len(str(abs(number)))} digits"
 
 
 def _is_number(value):
@@ -98,7 +122,14 @@ def spec_kind(spec, path=""):
 
 def validate_spec(spec, path=""):
     """Check the structure of a spec (a dict from JSON); raise SpecError
-    naming the first wrong field. Agrees with the published JSON schema."""
+    naming the first wrong field. Agrees with the published JSON schema
+    (which cannot express the nesting limit MAX_NESTING)."""
+    _validate(spec, path, 0)
+
+
+def _validate(spec, path, depth):
+    if depth > MAX_NESTING:
+        _fail(path, f"compounds nest more than {MAX_NESTING} levels of 'steps' (the limit)")
     kind = spec_kind(spec, path)
     allowed = FIELDS[kind] + COMMON_FIELDS
     for key in spec:
@@ -115,7 +146,7 @@ def validate_spec(spec, path=""):
         if not isinstance(steps, list) or not steps:
             _fail(_where(path, "steps"), f"must be a non-empty list of specs, got {_describe(steps)}")
         for i, step in enumerate(steps):
-            validate_spec(step, _where(_where(path, "steps"), i))
+            _validate(step, _where(_where(path, "steps"), i), depth + 1)
         return
     for key in ("src", "dst"):
         _check_quad(spec[key], _where(path, key))
@@ -127,8 +158,13 @@ def _check_quad(value, path):
     if not isinstance(value, list) or len(value) != 4:
         _fail(path, f"must be a list of 4 [x, y] points, got {_describe(value)}")
     for i, point in enumerate(value):
-        if not isinstance(point, list) or len(point) != 2 or not all(_is_number(v) for v in point):
+        if not isinstance(point, list) or len(point) != 2:
             _fail(_where(path, i), f"must be [x, y] (two numbers), got {_describe(point)}")
+        for name, v in zip("xy", point):
+            if not _is_number(v):
+                _fail(_where(path, i), f"must be [x, y] (two numbers), but {name} is {_describe(v)}")
+            if abs(v) > MAX_COORDINATE:
+                _fail(_where(path, i), f"{name} = {_short(v)} lies beyond ±{MAX_COORDINATE:g}, the largest coordinate supported")
 
 
 def _check_edges(value, path):
@@ -156,6 +192,11 @@ def _build(spec, path):
     if kind == "compound":
         steps_path = _where(path, "steps")
         return Compound([_build(step, _where(steps_path, i)) for i, step in enumerate(spec["steps"])])
+    for key in ("src", "dst"):
+        try:
+            check_quad(spec[key], "quad")
+        except DegenerateQuadError as exc:
+            _fail(_where(path, key), str(exc))
     try:
         if kind == "fpi":
             return FPI(spec["src"], spec["dst"])
@@ -179,8 +220,29 @@ def _reject_constant(name):
     raise ValueError(f"{name} is not valid JSON (numbers must be finite)")
 
 
+def _check_json_depth(text, name):
+    """Refuse text whose brackets nest deeper than MAX_JSON_DEPTH, before
+    the JSON parser recurses into them."""
+    depth = 0
+    for token in _JSON_TOKENS.finditer(text):
+        t = token.group()
+        if t in "[{":
+            depth += 1
+            if depth > MAX_JSON_DEPTH:
+                raise SpecError(
+                    f"{name}: brackets nest more than {MAX_JSON_DEPTH} deep (the limit; "
+                    f"compounds may nest {MAX_NESTING} levels of 'steps')"
+                )
+        elif t in "]}":
+            depth -= 1
+
+
 def parse_spec(text, name="spec"):
-    """The transform of a spec given as JSON text; ``name`` prefixes errors."""
+    """The transform of a spec given as JSON text; ``name`` prefixes errors.
+    A leading UTF-8 byte-order mark is ignored."""
+    if text.startswith("\ufeff"):
+        text = text[1:]
+    _check_json_depth(text, name)
     try:
         data = json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:

@@ -6,7 +6,10 @@ from hypothesis import example, given, reject, settings, strategies as st
 
 import fpiwarp
 from fpiwarp import ConstrainedFPI, InverseNotConvergedError, ThinPlateSpline
-from fpiwarp import _tps
+from fpiwarp import _foldover, _tps
+from fpiwarp import FoldOverError
+from fpiwarp._foldover import inside_quad, worst_fold
+from fpiwarp.spec import SpecError, build_transform
 from fpiwarp._quad import check_quad, signed_area
 from fpiwarp.metrics import grid, jacobian_determinant
 from fpiwarp.params import MAX_CENTERS, evaluate
@@ -440,3 +443,63 @@ def test_warp_image_gives_cval_where_the_newton_inverse_cannot_solve(monkeypatch
     img = np.full((24, 48), 200, np.uint8)
     out = fpiwarp.warp_image(img, f, cval=7)
     assert np.all(out == 7)
+
+
+# --- fold-over is refused when fitting (issue 12) ----------------------------------
+
+
+def test_a_folding_fit_is_refused_with_where_it_folds():
+    """Opposite edges 0 and 2 of a 2:1 region, the far edge turned by 60°:
+    the spline folds over near the left side (J < 0 there), and its
+    inverse would silently return another preimage."""
+    src = RECT * 50
+    dst = rotate_edge(src, 2, 60)
+    with pytest.raises(FoldOverError, match=r"folds over inside src: its Jacobian determinant is -") as info:
+        ConstrainedFPI(src, dst, edges=(0, 2))
+    assert "\n" not in str(info.value) and isinstance(info.value, ValueError)
+    with pytest.raises(FoldOverError):
+        fpiwarp.LocalDeformation(src, dst, edges=(0, 2))
+    with pytest.raises(SpecError, match=r"^steps\[1\]: the constrained FPI folds over"):
+        build_transform({"steps": [{"src": src.tolist(), "dst": src.tolist()},
+                                   {"src": src.tolist(), "dst": dst.tolist(), "edges": [0, 2]}]})
+
+
+def test_inside_quad_follows_the_even_odd_rule():
+    arrow = cplx([[0, 0], [4, 2], [0, 4], [1, 2]])  # non-convex: notch at (1, 2)
+    p = np.array([0.5 + 2j, 2 + 2j, 3.9 + 2j, 0.5 + 0.5j, 5 + 2j, 0.2 + 0.5j])
+    assert inside_quad(arrow, p).tolist() == [False, True, True, True, False, False]
+
+
+@st.composite
+def strong_deformations(draw):
+    """A quad with one constrained edge turned by up to 120° and scaled
+    0.5..2 (opposite edges), or its free corner moved far (adjacent)."""
+    src = draw(quads(min_scale=1.0, max_scale=1e3))
+    z, size = cplx(src), size_of(src)
+    if draw(st.booleans()):
+        first = draw(st.integers(0, 1))
+        dst = rotate_edge(src, first + 2, draw(st.floats(-120, 120)), draw(st.floats(0.5, 2.0)))
+        edges = (first, first + 2)
+    else:
+        first = draw(st.integers(0, 3))
+        w = z.copy()
+        w[(first + 3) % 4] += complex(draw(st.floats(-0.8, 0.8)), draw(st.floats(-0.8, 0.8))) * size
+        dst, edges = xy(w), (first, (first + 1) % 4)
+    return src, dst, edges
+
+
+@settings(max_examples=60, deadline=None)
+@given(strong_deformations())
+def test_accepted_fits_do_not_fold_even_on_a_denser_sampling(case):
+    """Refused (fold-over, degenerate or inconsistent input), or the
+    Jacobian stays > 0 on a grid three times denser than the check's
+    and on 5x more edge points, and interior points round-trip."""
+    src, dst, edges = case
+    try:
+        f = ConstrainedFPI(src, dst, edges=edges)
+    except ValueError:
+        return
+    denser = {"grid": 3 * _foldover.GRID, "edge_points": 5 * _foldover.EDGE_POINTS}
+    assert worst_fold(f, cplx(src), margin=0.0, **denser) is None
+    p = interior(src, 9)
+    assert np.abs(f.inverse(f(p)) - p).max() <= 1e-8 * size_of(src)

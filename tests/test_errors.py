@@ -24,6 +24,8 @@ HIERARCHY = [
     (fpiwarp.OutputExistsError, FileExistsError),
     (fpiwarp.OutputIsFolderError, IsADirectoryError),
     (fpiwarp.SpecError, ValueError),
+    (fpiwarp.IllConditionedPairError, fpiwarp.DegenerateQuadError),
+    (fpiwarp.FoldOverError, fpiwarp.ConstraintError),
 ]
 
 

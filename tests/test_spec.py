@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import fpiwarp
+from fpiwarp import spec as spec_module
 from fpiwarp.spec import SpecError, build_transform, load_spec, parse_spec, save_spec, schema, to_spec, validate_spec
 
 SQUARE = [[0, 0], [10, 0], [10, 10], [0, 10]]
@@ -36,7 +37,11 @@ INVALID = [
     ({"type": "fpi", "src": SQUARE, "dst": MOVED, "edges": [0, 2]}, "spec", "unknown field 'edges'"),
     ({"type": "local", "src": SQUARE, "dst": MOVED}, "spec", "missing required field 'edges'"),
     ({"src": SQUARE[:3], "dst": MOVED}, "src", "4 [x, y] points"),
-    ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1, "1"], [0, 1]]}, "dst[2]", "two numbers"),
+    ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1, "1"], [0, 1]]}, "dst[2]", "y is the text '1'"),
+    ({"src": [["0", "0"], [1, 0], [1, 1], [0, 1]], "dst": SQUARE}, "src[0]", "x is the text '0'"),
+    ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1e200, 1], [0, 1]]}, "dst[2]", "x = 1e+200 lies beyond ±1e+100"),
+    ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1, -1e308], [0, 1]]}, "dst[2]", "y = -1e+308 lies beyond"),
+    ({"steps": [{"src": SQUARE, "dst": [[0, 0], [10**400, 0], [1, 1], [0, 1]]}]}, "steps[0].dst[1]", "integer of 401 digits"),
     ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1, True], [0, 1]]}, "dst[2]", "two numbers"),
     ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1, 1, 1], [0, 1]]}, "dst[2]", "two numbers"),
     ({"src": SQUARE, "dst": MOVED, "edges": [0, 0]}, "edges", "two different edge numbers"),
@@ -158,9 +163,11 @@ def test_a_local_spec_builds_a_local_deformation():
 @pytest.mark.parametrize(
     "spec, where, problem",
     [
-        ({"src": [[0, 0], [5, 5], [10, 10], [0, 10]], "dst": MOVED}, "spec", "collinear"),
+        ({"src": [[0, 0], [5, 5], [10, 10], [0, 10]], "dst": MOVED}, "src", "collinear"),
         ({"steps": [{"src": SQUARE, "dst": MOVED}, {"src": SQUARE, "dst": SQUARE[::-1]}]}, "steps[1]", "orientation"),
-        ({"src": SQUARE, "dst": [[0, 0], [10, 10], [10, 0], [0, 10]]}, "spec", "self-intersecting"),
+        ({"src": SQUARE, "dst": [[0, 0], [10, 10], [10, 0], [0, 10]]}, "dst", "self-intersecting"),
+        ({"steps": [{"src": SQUARE, "dst": [[0, 0], [0, 0], [1, 1], [0, 1]]}]}, "steps[0].dst", "points 0 and 1 coincide"),
+        ({"src": [[1e8, 1e8], [1e8 + 1, 1e8], [1e8 + 1, 1e8 + 1], [1e8, 1e8 + 1]], "dst": [[1e8, 1e8], [1e8, 1e8 + 1], [1e8 + 1, 1e8 + 1], [1e8 + 1, 1e8]]}, "spec", "opposite orientations"),
     ],
 )
 def test_degenerate_geometry_is_named_with_its_step(spec, where, problem):
@@ -220,3 +227,84 @@ def test_docstring_examples():
 
     result = doctest.testmod(fpiwarp.spec, optionflags=doctest.ELLIPSIS)
     assert result.attempted > 0 and result.failed == 0
+
+
+# --- nesting limits, byte-order marks, far coordinates (issue 12) ---------------
+
+
+def _nested(levels):
+    spec = {"src": SQUARE, "dst": MOVED}
+    for _ in range(levels):
+        spec = {"steps": [spec]}
+    return spec
+
+
+@pytest.mark.parametrize("levels", [33, 100, 3000])
+def test_deep_compounds_are_one_line_errors(levels):
+    with pytest.raises(SpecError) as info:
+        build_transform(_nested(levels))
+    message = str(info.value)
+    assert "\n" not in message and f"more than {spec_module.MAX_NESTING} levels of 'steps'" in message
+    assert message.startswith("steps[0]." * spec_module.MAX_NESTING)
+
+
+def test_the_deepest_allowed_compound_builds_from_text_and_dict():
+    spec = _nested(spec_module.MAX_NESTING)
+    assert np.allclose(build_transform(spec)(PTS), fpiwarp.FPI(SQUARE, MOVED)(PTS))
+    assert np.allclose(parse_spec(json.dumps(spec))(PTS), fpiwarp.FPI(SQUARE, MOVED)(PTS))
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "[" * 100_000,
+        '{"a": ' * 100_000,
+        '{"steps": [' * 3000 + json.dumps({"src": SQUARE, "dst": MOVED}) + "]}" * 3000,
+        "[" * 69 + "]" * 69,
+    ],
+)
+def test_deeply_nested_text_is_refused_before_parsing(text):
+    with pytest.raises(SpecError, match=rf"^deep\.json: brackets nest more than {spec_module.MAX_JSON_DEPTH} deep"):
+        parse_spec(text, "deep.json")
+
+
+def test_brackets_inside_text_do_not_count_as_nesting():
+    spec = {"src": SQUARE, "dst": MOVED, "description": "[" * 500 + '\\"{' * 100}
+    assert isinstance(parse_spec(json.dumps(spec)), fpiwarp.FPI)
+
+
+def test_a_utf8_byte_order_mark_is_ignored(tmp_path):
+    text = json.dumps({"src": SQUARE, "dst": MOVED})
+    assert isinstance(parse_spec("\ufeff" + text), fpiwarp.FPI)
+    path = tmp_path / "bom.json"
+    path.write_text(text, encoding="utf-8-sig")
+    assert path.read_bytes().startswith(b"\xef\xbb\xbf")
+    assert np.allclose(load_spec(path)(PTS), fpiwarp.FPI(SQUARE, MOVED)(PTS))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.floats(1.0000001e100, 1e308) | st.floats(-1e308, -1.0000001e100),
+    st.integers(0, 3),
+    st.integers(0, 1),
+    st.sampled_from(["src", "dst"]),
+)
+def test_coordinates_beyond_the_limit_are_named(value, point, axis, key):
+    spec = {"steps": [{"src": SQUARE, "dst": MOVED}, {"src": [list(p) for p in SQUARE], "dst": [list(p) for p in MOVED]}]}
+    spec["steps"][1][key][point][axis] = value
+    with pytest.raises(SpecError) as info:
+        build_transform(spec)
+    assert str(info.value).startswith(f"steps[1].{key}[{point}]: {'xy'[axis]} = ")
+    assert "lies beyond" in str(info.value)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(-1e9, 1e9), st.floats(-1e9, 1e9), st.floats(1e-3, 1e6))
+def test_far_and_scaled_specs_build_the_same_map(dx, dy, scale):
+    """A spec moved and scaled anywhere in range builds a map that still
+    sends its corners home (the checks do not depend on the position)."""
+    src = [[x * scale + dx, y * scale + dy] for x, y in SQUARE]
+    dst = [[x * scale + dx, y * scale + dy] for x, y in MOVED]
+    f = parse_spec(json.dumps({"src": src, "dst": dst}))
+    tol = 1e-9 * 10 * scale + 64 * np.finfo(float).eps * (abs(dx) + abs(dy) + 11 * scale)
+    assert np.abs(f(src) - np.array(dst)).max() <= tol
