@@ -42,7 +42,9 @@ def write_json(path, data):
 def parse_args(argv):
     parser = argparse.ArgumentParser(prog="python3 -m benchmarks", description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="small sizes: a smoke run of a few seconds")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT.name}/ beside this file)")
+    parser.add_argument(
+        "--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT.name}/ beside this file)"
+    )
     parser.add_argument("--only", choices=("speed", "quality"), help="run one half only")
     parser.add_argument(
         "--backends",
@@ -60,7 +62,9 @@ def main(argv=None):
     info = machine.describe()
     info["mode"] = "quick" if args.quick else "full"
     machine_md = machine.markdown(info)
-    log = lambda msg: print(msg, flush=True)
+    def log(msg):
+        print(msg, flush=True)
+
 
     if args.only in (None, "speed"):
         import fpiwarp

@@ -14,6 +14,7 @@ noisy: compare the ratios within one run.
 """
 
 import argparse
+import functools
 import os
 import shutil
 import tempfile
@@ -108,7 +109,7 @@ def main(argv=None):
                 name = f"fpiwarp run_batch, {backend}, jobs={jobs}"
                 run_batch(transform, warm, root / f"warm-{backend}-{jobs}", backend=backend, jobs=jobs)
                 out = root / f"out-{backend}-{jobs}"
-                run = lambda out=out, b=backend, j=jobs: run_batch(transform, photos, out, backend=b, jobs=j)
+                run = functools.partial(run_batch, transform, photos, out, backend=backend, jobs=jobs)
                 rows.append((name, timed(run)))
 
         reference = rows[0][1]

@@ -59,7 +59,9 @@ def accuracy(rng, trials=300):
         worst["round trip"] = max(worst["round trip"], np.abs(f.inverse(f(p)) - p).max() / np.abs(z).max())
         fd = finite_difference_jacobian(f, p, 1e-5 * scale)
         jac = f.jacobian(p)
-        worst["jacobian vs FD"] = max(worst["jacobian vs FD"], (np.abs(jac - fd).max(axis=(1, 2)) / np.abs(jac).max(axis=(1, 2))).max())
+        worst["jacobian vs FD"] = max(
+            worst["jacobian vs FD"], (np.abs(jac - fd).max(axis=(1, 2)) / np.abs(jac).max(axis=(1, 2))).max()
+        )
         k = f.distortion(p)
         worst["K spread"] = max(worst["K spread"], np.abs(k / f.K - 1).max())
     return worst

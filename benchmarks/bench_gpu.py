@@ -158,7 +158,8 @@ def markdown(rows, devices):
         gbs = 2 * w * h * c / med / 1e9
         ref = base.get((size, c))
         ratio = f"{ref / med:.2f}x" if ref else "n/a"
-        lines.append(f"| {size} | {c} | {name} | {med * 1e3:.2f} | {best * 1e3:.2f} | {1 / med:.0f} | {gbs:.1f} | {ratio} |")
+        cells = [size, c, name, f"{med * 1e3:.2f}", f"{best * 1e3:.2f}", f"{1 / med:.0f}", f"{gbs:.1f}", ratio]
+        lines.append("| " + " | ".join(str(v) for v in cells) + " |")
     dev = "\n".join(f"- {k}: {v}" for k, v in devices.items())
     return "Devices:\n" + dev + "\n\n" + "\n".join(lines) + "\n"
 
@@ -170,9 +171,12 @@ def main(argv=None):
     parser.add_argument("--frames", type=int, default=50, help="launches per 'on device' timing")
     parser.add_argument("--backends", default="opencl,warp,gl", help="comma-separated backends to time")
     parser.add_argument("--out", help="also write the tables to this markdown file")
-    parser.add_argument("--one-process", action="store_true",
-                        help="time all backends in this process (by default each runs in its own: two GPU "
-                             "APIs in one process slow each other's transfers)")
+    parser.add_argument(
+        "--one-process",
+        action="store_true",
+        help="time all backends in this process (by default each runs in its own: two GPU "
+        "APIs in one process slow each other's transfers)",
+    )
     args = parser.parse_args(argv)
     names = [b for b in args.backends.split(",") if b]
     if len(names) > 1 and not args.one_process:
@@ -203,11 +207,23 @@ def _in_own_process(name, args):
     import subprocess
     import sys
 
-    cmd = [sys.executable, __file__, "--backends", name, "--sizes", args.sizes,
-           "--repeat", str(args.repeat), "--frames", str(args.frames)]
+    cmd = [
+        sys.executable,
+        __file__,
+        "--backends",
+        name,
+        "--sizes",
+        args.sizes,
+        "--repeat",
+        str(args.repeat),
+        "--frames",
+        str(args.frames),
+    ]
     done = subprocess.run(cmd, capture_output=True, text=True, check=False)  # a failure is reported, not raised
     if done.returncode != 0:
-        return f"## {name}\n\nfailed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}\n"
+        return (
+            f"## {name}\n\nfailed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}\n"
+        )
     return f"## {name}\n\n{done.stdout.strip()}\n"
 
 

@@ -30,8 +30,6 @@ import numpy as np
 import fpiwarp
 
 
-
-
 def _round_robin(methods, repeat):
     """Time every method ``repeat`` times, interleaved; medians in seconds."""
     for fn in methods.values():

@@ -31,7 +31,10 @@ def speed_scaling(results, path, dpi=90):
     panels = [("map_points", "float64", "map_points (points)")]
     if any(r.workload == "map_points constrained" for r in results):
         panels.append(("map_points constrained", "float64", "map_points, constrained FPI (points)"))
-    panels += [("warp_image", d, f"warp_image, {d} RGB (pixels)") for d in sorted({r.dtype for r in results if r.workload == "warp_image"}, reverse=True)]
+    panels += [
+        ("warp_image", d, f"warp_image, {d} RGB (pixels)")
+        for d in sorted({r.dtype for r in results if r.workload == "warp_image"}, reverse=True)
+    ]
     fig, axes = plt.subplots(1, len(panels), figsize=(6.0 * len(panels), 4.8), squeeze=False)
     for ax, (workload, dtype, title) in zip(axes[0], panels):
         rows = [r for r in results if r.workload == workload and r.dtype == dtype]
@@ -41,7 +44,14 @@ def speed_scaling(results, path, dpi=90):
                 continue
             n, s = zip(*pts)
             backend = impl.startswith("fpiwarp")
-            ax.plot(n, s, marker="o" if backend else "s", linestyle="-" if backend else "--", linewidth=2 if backend else 1.2, label=impl)
+            ax.plot(
+                n,
+                s,
+                marker="o" if backend else "s",
+                linestyle="-" if backend else "--",
+                linewidth=2 if backend else 1.2,
+                label=impl,
+            )
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel(title.split("(")[-1].rstrip(")"))
@@ -92,7 +102,13 @@ def _draw(ax_board, ax_dil, f, dst, n, checkers=8):
     board = ((i * checkers // n + j * checkers // n) % 2).astype(float)
     ax_board.pcolormesh(mapped[..., 0], mapped[..., 1], board, cmap="gray", vmin=-0.3, vmax=1.2, shading="flat")
     return ax_dil.pcolormesh(
-        mapped[..., 0], mapped[..., 1], np.nan_to_num(dil, nan=DILATION_MAX), cmap="jet", vmin=0, vmax=DILATION_MAX, shading="flat"
+        mapped[..., 0],
+        mapped[..., 1],
+        np.nan_to_num(dil, nan=DILATION_MAX),
+        cmap="jet",
+        vmin=0,
+        vmax=DILATION_MAX,
+        shading="flat",
     )
 
 
@@ -139,7 +155,15 @@ def fig8(quality_result, path, n=64, dpi=80):
     from .quality import METHODS
 
     columns = [(c["name"], c["src"], c["dst"]) for c in quality_result["configs"]]
-    _grid_figure(columns, METHODS, quality_result["_maps"], path, n, "Square with moved corners: checkerboard | conformal dilation", dpi)
+    _grid_figure(
+        columns,
+        METHODS,
+        quality_result["_maps"],
+        path,
+        n,
+        "Square with moved corners: checkerboard | conformal dilation",
+        dpi,
+    )
 
 
 def fig11(quality_result, path, n=64, dpi=80):
@@ -149,5 +173,7 @@ def fig11(quality_result, path, n=64, dpi=80):
         return False
     columns = [(c["name"], c["src"], c["dst"]) for c in cfgs]
     rows = list(cfgs[0]["rows"])
-    _grid_figure(columns, rows, quality_result["_maps"], path, n, "Constrained FPI vs TPS with the same edge constraints", dpi)
+    _grid_figure(
+        columns, rows, quality_result["_maps"], path, n, "Constrained FPI vs TPS with the same edge constraints", dpi
+    )
     return True

@@ -136,7 +136,8 @@ def run(grid_n=200, configs=CONFIGS, constrained=CONSTRAINED_CONFIGS, log=print)
     under "_maps" (not JSON-serializable; removed before writing JSON).
     """
     points = inner_grid(grid_n)
-    out = {"grid_n": grid_n, "tps_provider": methods.thin_plate_spline(SQUARE, SQUARE * 2)[1], "configs": [], "_maps": {}}
+    tps_provider = methods.thin_plate_spline(SQUARE, SQUARE * 2)[1]
+    out = {"grid_n": grid_n, "tps_provider": tps_provider, "configs": [], "_maps": {}}
     for cfg in configs:
         rows = {}
         for method in METHODS:
@@ -167,7 +168,13 @@ def run(grid_n=200, configs=CONFIGS, constrained=CONSTRAINED_CONFIGS, log=print)
         out["_maps"][(cfg.name, "TPS (same constraints)")] = tps
         out["_maps"][(cfg.name, "FPI (unconstrained)")] = fpi
         out["constrained"].append(
-            {"name": cfg.name, "edges": list(cfg.edges), "src": cfg.src.tolist(), "dst": cfg.target.tolist(), "rows": rows}
+            {
+                "name": cfg.name,
+                "edges": list(cfg.edges),
+                "src": cfg.src.tolist(),
+                "dst": cfg.target.tolist(),
+                "rows": rows,
+            }
         )
         log(f"constrained {cfg.name}: " + ", ".join(f"{m} {_short(r)}" for m, r in rows.items()))
     return out
@@ -237,8 +244,12 @@ def markdown(result, machine_md):
             ]
             for m, ref in PAPER_TABLE.items():
                 row = cfg["rows"][m]
-                here = "error" if "error" in row else " / ".join(
-                    _num(row[k]) for k in ("max_dilation", "mean_dilation", "std_dilation", "area_distortion")
+                here = (
+                    "error"
+                    if "error" in row
+                    else " / ".join(
+                        _num(row[k]) for k in ("max_dilation", "mean_dilation", "std_dilation", "area_distortion")
+                    )
                 )
                 parts.append(f"| {m} | {' / '.join(f'{v:g}' for v in ref)} | {here} |")
     if result.get("constrained"):

@@ -320,7 +320,9 @@ def run(settings, log=print):
 
 def _brief(rows):
     return ", ".join(
-        f"{impl.replace('fpiwarp ', '')} {row.seconds * 1e3:.1f} ms" for impl, row in rows.items() if row.seconds is not None
+        f"{impl.replace('fpiwarp ', '')} {row.seconds * 1e3:.1f} ms"
+        for impl, row in rows.items()
+        if row.seconds is not None
     )
 
 
@@ -395,7 +397,11 @@ def headline(results):
         cells = []
         for _, col in columns:
             r = col.get(impl)
-            cells.append("" if r is None else ("skipped" if r.seconds is None else f"{_fmt_time(r.seconds)} ({_fmt_ratio(r.ratio)})"))
+            cells.append(
+                ""
+                if r is None
+                else ("skipped" if r.seconds is None else f"{_fmt_time(r.seconds)} ({_fmt_ratio(r.ratio)})")
+            )
         lines.append(f"| {impl} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

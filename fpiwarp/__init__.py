@@ -4,6 +4,7 @@ from .resources import bind_source_packages
 
 bind_source_packages()  # kernels/ and glsl/ from this tree, never another checkout's
 
+from ._constrained import ConstrainedFPI
 from ._errors import (
     ArgumentError,
     ArgumentTypeError,
@@ -13,22 +14,20 @@ from ._errors import (
     FoldOverError,
     FpiwarpError,
     IllConditionedPairError,
-    InverseNotConvergedError,
     ImageError,
+    InverseNotConvergedError,
     MissingDependencyError,
     OutputExistsError,
     OutputIsFolderError,
     SizeLimitError,
     SpecError,
 )
-from ._constrained import ConstrainedFPI
 from ._fpi import FPI
-from ._local import LocalDeformation
 from ._linear import RLinear
+from ._local import LocalDeformation
 from ._mobius import Mobius
 from ._tps import ThinPlateSpline
 from ._transform import Compound, Transform
-
 from ._warp import map_points, warp_image
 from .backends import available_backends, backend_capabilities, backend_status
 from .batch import warp_batch, warp_images

@@ -9,7 +9,6 @@ from .backends import backend_capabilities, get_backend
 from .validation import check_map_size, check_point_count, check_points, check_transform, check_warp_arguments
 
 
-
 def map_points(transform, points, backend="numpy"):
     """Map (..., 2) points through ``transform`` on a backend (per vertex).
 

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io_atomic import TEMP_SUFFIX, atomic_write, check_output, is_temp_file
 from ._errors import ImageError, OutputExistsError, OutputIsFolderError
+from ._io_atomic import TEMP_SUFFIX, atomic_write, check_output, is_temp_file
 from ._io_formats import (
     INSTALL_IO,
     MAX_PIXELS,

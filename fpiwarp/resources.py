@@ -52,7 +52,7 @@ def bind_source_packages():
         setattr(sys.modules["fpiwarp"], kind, module)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def source(kind, name):
     """The text of ``name`` in ``kernels`` or ``glsl``; cached after one read."""
     if kind not in PACKAGES:

@@ -164,7 +164,8 @@ def _check_quad(value, path):
             if not _is_number(v):
                 _fail(_where(path, i), f"must be [x, y] (two numbers), but {name} is {_describe(v)}")
             if abs(v) > MAX_COORDINATE:
-                _fail(_where(path, i), f"{name} = {_short(v)} lies beyond ±{MAX_COORDINATE:g}, the largest coordinate supported")
+                limit = f"±{MAX_COORDINATE:g}"
+                _fail(_where(path, i), f"{name} = {_short(v)} lies beyond {limit}, the largest coordinate supported")
 
 
 def _check_edges(value, path):

@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
+import fpiwarp
+from fpiwarp.backends import backend_status
+
 settings.register_profile("dev", deadline=None)
 settings.register_profile("ci", deadline=None, derandomize=True, database=None, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
-
-import fpiwarp
-from fpiwarp.backends import backend_status
 
 
 def required_backends():

@@ -19,10 +19,10 @@ import time
 from unittest import mock
 
 import numpy as np
+from quad_fuzz import random_quad
 
 import fpiwarp
 from fpiwarp import _constrained, _foldover
-from quad_fuzz import random_quad
 
 
 def strong_deformation(rng):
@@ -81,7 +81,10 @@ def main(argv=None):
     print(f"{len(dense)} fits, {folds.sum()} fold on the dense sampling")
     for margin in (0.0, 0.01, 0.02, 0.05, 0.1):
         refused = sparse <= margin
-        print(f"margin {margin:g}: folds missed {(folds & ~refused).sum()}, unfolded fits refused {(~folds & refused).sum()}")
+        print(
+            f"margin {margin:g}: folds missed {(folds & ~refused).sum()}, "
+            f"unfolded fits refused {(~folds & refused).sum()}"
+        )
     print(f"fit {1e3 * fit_s / len(dense):.2f} ms, check {1e3 * check_s / len(dense):.2f} ms per fit")
 
 

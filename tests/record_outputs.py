@@ -99,7 +99,7 @@ def _cases(backends):
         for map_name in ("local", "constrained", "compound"):
             for order in ORDERS:
                 key = f"warp/{backend}/smooth/{map_name}/o{order}/constant/uint8/c3"
-                yield key, (lambda m=maps[map_name], o=order, b=backend:
+                yield key, (lambda m=maps[map_name], o=order, b=backend, img=img:
                             fpiwarp.warp_image(img, m, order=o, cval=5, backend=b))
 
 

@@ -1,7 +1,8 @@
 """Hypothesis strategies for quads, shared by the math tests."""
 
 import numpy as np
-from hypothesis import reject, strategies as st
+from hypothesis import reject
+from hypothesis import strategies as st
 
 from fpiwarp._quad import check_quad, signed_area
 

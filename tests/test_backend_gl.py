@@ -439,7 +439,8 @@ def test_flat_varyings_give_the_same_pictures_as_uniforms(gl):
         for transform in maps:
             for order, mode in [(1, "constant"), (3, "reflect"), (0, "wrap")]:
                 cv = np.array([10.0, 20, 30])
-                outs = [w.warp_image(img, transform, (50, 66), order=order, mode=mode, cval=cv) for w in warpers.values()]
+                outs = [w.warp_image(img, transform, (50, 66), order=order, mode=mode, cval=cv)
+                        for w in warpers.values()]
                 assert all(np.array_equal(o, outs[0]) for o in outs[1:])
                 assert_images_agree(outs[0], reference(img, transform, (50, 66), order, mode, cv)[0], np.uint8)
     finally:
@@ -452,11 +453,21 @@ def test_flat_varyings_forward_what_fits(gl):
     stages as the rest holds; below that budget, plain uniforms."""
     from fpiwarp.backends.gl import FULLSCREEN, HOT_ROWS, MAX_PER_DRAW, ProgramKey, flat_value_sources, stage_kinds
 
-    key = ProgramKey(FULLSCREEN, "warp.frag", stages=tuple(stage_kinds(_chain_of_fpis(6).params())),
-                     order=1, mode="constant", source="unorm", output="int")
+    key = ProgramKey(
+        FULLSCREEN,
+        "warp.frag",
+        stages=tuple(stage_kinds(_chain_of_fpis(6).params())),
+        order=1,
+        mode="constant",
+        source="unorm",
+        output="int",
+    )
     slots = gl.warper.varying_slots
-    for n_slots, hot in [(slots, min(6, (slots - 1 - MAX_PER_DRAW) // HOT_ROWS)),
-                         (MAX_PER_DRAW + 1 + HOT_ROWS, 1), (MAX_PER_DRAW + 1, 0)]:
+    for n_slots, hot in [
+        (slots, min(6, (slots - 1 - MAX_PER_DRAW) // HOT_ROWS)),
+        (MAX_PER_DRAW + 1 + HOT_ROWS, 1),
+        (MAX_PER_DRAW + 1, 0),
+    ]:
         vs, fs = flat_value_sources(key, n_slots)
         for text in (vs, fs):
             assert "#define FPW_FLAT_PER_DRAW\n" in text
@@ -476,9 +487,14 @@ def test_every_per_draw_list_fits_and_declares_what_is_read(gl):
     values reach the program under their own names."""
     from fpiwarp.backends.gl import FULLSCREEN, ProgramKey, flat_value_sources
 
-    kinds = [dict(source="unorm", output="int"), dict(source="float", output="float"),
-             dict(source="int", output="accumulate"), dict(source="hw", output="int"),
-             dict(source="unorm", output=None, pack_pixels=4), dict(source=None, output="fill_int")]
+    kinds = [
+        dict(source="unorm", output="int"),
+        dict(source="float", output="float"),
+        dict(source="int", output="accumulate"),
+        dict(source="hw", output="int"),
+        dict(source="unorm", output=None, pack_pixels=4),
+        dict(source=None, output="fill_int"),
+    ]
     keys = [ProgramKey(FULLSCREEN, "warp.frag", stages=((0, 0),), order=1, mode="constant", **k) for k in kinds]
     keys.append(ProgramKey(FULLSCREEN, "preview.frag", stages=((0, 0),), order=1, mode="constant"))
     keys.append(ProgramKey(FULLSCREEN, "pack_rgb.frag", pack_pixels=4, samples=False))
@@ -545,15 +561,18 @@ def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
                 np.testing.assert_array_equal(a, b)
             np.testing.assert_array_equal(
                 packed.warp_image(img, sample_fpi(), shape, order=1, mode="edge", cval=cval, hardware_filter=True),
-                direct.warp_image(img, sample_fpi(), shape, order=1, mode="edge", cval=cval, hardware_filter=True))
+                direct.warp_image(img, sample_fpi(), shape, order=1, mode="edge", cval=cval, hardware_filter=True),
+            )
             out = (40, 30)  # larger than the 16 px textures of `small`: the output is tiled
             small_img = img[:16, :16]
             np.testing.assert_array_equal(
                 small.warp_image(small_img, RLinear(0.9, 0.05j, 1 + 2j), out, order=1, mode="edge", cval=cval),
-                direct.warp_image(small_img, RLinear(0.9, 0.05j, 1 + 2j), out, order=1, mode="edge", cval=cval))
+                direct.warp_image(small_img, RLinear(0.9, 0.05j, 1 + 2j), out, order=1, mode="edge", cval=cval),
+            )
             np.testing.assert_array_equal(
                 packed.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval),
-                direct.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval))
+                direct.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval),
+            )
         in_shader = [key for key in packed.programs.programs if key.fragment == "warp.frag" and key.pack_pixels]
         assert in_shader and any(key.fragment == "pack_rgb.frag" for key in packed.programs.programs)
         assert not any(key.pack_pixels or key.fragment == "pack_rgb.frag" for key in direct.programs.programs)

@@ -16,8 +16,8 @@ import pytest
 
 import fpiwarp
 from fpiwarp import FPI, Mobius, RLinear
-from fpiwarp.backends import get_backend
 from fpiwarp._tps import DEVICE_RTOL
+from fpiwarp.backends import get_backend
 from fpiwarp.block import (
     CORE_TPS,
     CORE_TPS_INVERSE,
@@ -377,4 +377,5 @@ def test_program_source_inlines_header():
     from fpiwarp.backends import opencl_backend as ocl
 
     text = ocl.program_source()
-    assert '#include "' not in text and "fw_stage_kind" in text and "void warp_image(" in text and "void map_points(" in text
+    assert '#include "' not in text and "fw_stage_kind" in text
+    assert "void warp_image(" in text and "void map_points(" in text

@@ -245,9 +245,9 @@ def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(warp, rng
     kernel itself, given such a block anyway, returns NaN ("outside"),
     never a silent Newton inverse."""
     import warp as wp
+    from fpiwarp.kernels import warp_map
 
     from fpiwarp.block import ROW_HEADER
-    from fpiwarp.kernels import warp_map
 
     block = sample_fpi().params().copy()
     block[1 + ROW_HEADER, 0] = 7

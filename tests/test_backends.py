@@ -3,15 +3,14 @@
 import pytest
 
 import fpiwarp
-from fpiwarp import BackendUnavailableError, RLinear
-from fpiwarp import backends
+from fpiwarp import BackendUnavailableError, RLinear, backends
 
 
 def test_status_lists_every_backend_with_a_reason_or_none():
     status = fpiwarp.backend_status()
     assert set(status) == {"numpy", "opencl", "warp", "gl"}
     assert status["numpy"] is None
-    for name, reason in status.items():
+    for reason in status.values():
         assert reason is None or (isinstance(reason, str) and reason)
     assert "numpy" in fpiwarp.available_backends()
 

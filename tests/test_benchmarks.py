@@ -17,7 +17,7 @@ from strategies import quads
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # benchmarks/ lives beside the package, not in it
 
-from benchmarks import methods, speed
+from benchmarks import methods, speed  # noqa: E402 (needs the path above)
 
 finite = st.floats(-2.0, 2.0, allow_nan=False)
 
@@ -103,7 +103,12 @@ def _distance_to_boundary(q, p):
 
 
 @settings(max_examples=40, deadline=None)
-@given(quads(max_scale=1e3), st.tuples(finite, finite, finite, finite), st.tuples(finite, finite), st.integers(0, 2**32 - 1))
+@given(
+    quads(max_scale=1e3),
+    st.tuples(finite, finite, finite, finite),
+    st.tuples(finite, finite),
+    st.integers(0, 2**32 - 1),
+)
 def test_mean_value_reproduces_linear_functions(src, matrix, offset, seed):
     """sum_i lambda_i = 1 and sum_i lambda_i v_i = p (linear precision), so
     MVC reproduces any affine map; this holds inside and outside non-convex
@@ -129,7 +134,9 @@ def test_mean_value_is_linear_on_the_edges():
     sq = np.array([[0, 0], [2, 0], [2, 2], [0, 2]], dtype=float)
     dst = np.array([[0, 0], [4, 1], [3, 5], [-1, 2]], dtype=float)
     f = methods.MeanValue(sq, dst)
-    np.testing.assert_allclose(f([[0.5, 0.0], [2.0, 1.5]]), [0.75 * dst[0] + 0.25 * dst[1], 0.25 * dst[1] + 0.75 * dst[2]], atol=1e-14)
+    np.testing.assert_allclose(
+        f([[0.5, 0.0], [2.0, 1.5]]), [0.75 * dst[0] + 0.25 * dst[1], 0.25 * dst[1] + 0.75 * dst[2]], atol=1e-14
+    )
 
 
 # ------------------------------------------------------------------ MLS-SIM
@@ -143,7 +150,12 @@ def test_mls_similarity_interpolates_the_control_points(src, dst):
 
 
 @settings(max_examples=40, deadline=None)
-@given(quads(max_scale=1e3), st.complex_numbers(min_magnitude=0.1, max_magnitude=10), st.complex_numbers(max_magnitude=100), st.integers(0, 2**32 - 1))
+@given(
+    quads(max_scale=1e3),
+    st.complex_numbers(min_magnitude=0.1, max_magnitude=10),
+    st.complex_numbers(max_magnitude=100),
+    st.integers(0, 2**32 - 1),
+)
 def test_mls_similarity_reproduces_a_similarity_exactly(src, a, b, seed):
     z = src[:, 0] + 1j * src[:, 1]
     w = a * z + b
@@ -220,7 +232,15 @@ def quick_run(tmp_path_factory):
 
 def test_quick_run_writes_every_output(quick_run):
     names = {p.name for p in quick_run.iterdir()}
-    expected = {"machine.json", "speed.md", "speed.json", "speed_scaling.png", "quality.md", "quality.json", "quality_fig8.png"}
+    expected = {
+        "machine.json",
+        "speed.md",
+        "speed.json",
+        "speed_scaling.png",
+        "quality.md",
+        "quality.json",
+        "quality_fig8.png",
+    }
     assert expected <= names
     assert not any(n.endswith(".tmp") for n in names)
     for name in names:

@@ -2,18 +2,17 @@
 
 import numpy as np
 import pytest
-from hypothesis import example, given, reject, settings, strategies as st
+from hypothesis import example, given, reject, settings
+from hypothesis import strategies as st
+from strategies import quads
 
 import fpiwarp
-from fpiwarp import ConstrainedFPI, InverseNotConvergedError, ThinPlateSpline
-from fpiwarp import _foldover, _tps
-from fpiwarp import FoldOverError
+from fpiwarp import ConstrainedFPI, FoldOverError, InverseNotConvergedError, ThinPlateSpline, _foldover, _tps
 from fpiwarp._foldover import inside_quad, worst_fold
-from fpiwarp.spec import SpecError, build_transform
 from fpiwarp._quad import check_quad, signed_area
 from fpiwarp.metrics import grid, jacobian_determinant
 from fpiwarp.params import MAX_CENTERS, evaluate
-from strategies import quads
+from fpiwarp.spec import SpecError, build_transform
 
 SETTINGS = settings(max_examples=40, deadline=None)
 RECT = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]])

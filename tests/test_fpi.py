@@ -2,12 +2,13 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from strategies import orient_like, quads
 
 import fpiwarp
 from fpiwarp import FPI, DegenerateQuadError, Mobius, RLinear
-from fpiwarp._quad import parallelogram_mobius, check_quad
-from strategies import orient_like, quads
+from fpiwarp._quad import check_quad, parallelogram_mobius
 
 SETTINGS = settings(max_examples=150, deadline=None)
 UNIT = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])

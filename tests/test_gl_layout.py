@@ -4,10 +4,10 @@ of the GL stack imports a private name from another module."""
 
 import ast
 import importlib
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 GL_MODULES = sorted((ROOT / "fpiwarp" / "backends" / "gl").glob("*.py")) + sorted(

@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 from hypothesis import given, settings
+from test_constrained import RECT, cplx, deformations, rotate_edge, similarity, size_of, xy
 
 import fpiwarp
 from fpiwarp import Compound, ConstrainedFPI, LocalDeformation
 from fpiwarp.metrics import grid
 from fpiwarp.params import evaluate
-from test_constrained import RECT, cplx, deformations, rotate_edge, similarity, size_of, xy
 
 CONVEX = deformations(convex=True)
 

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
+from strategies import quads
 
 import fpiwarp
 from fpiwarp import FPI, ConstrainedFPI, RLinear
@@ -15,7 +16,6 @@ from fpiwarp.metrics import (
     jacobian_determinant,
     summarize,
 )
-from strategies import quads
 
 UNIT = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 

@@ -68,7 +68,12 @@ def test_loader_reads_sources_from_an_installed_wheel(wheel, tmp_path):
         text=True,
     )
     assert result.returncode == 0, result.stderr
-    expected = sum(1 for f in ("kernels", "glsl") for p in (ROOT / f).iterdir() if p.suffix in {".cl", ".h", ".glsl", ".vert", ".frag"})
+    expected = sum(
+        1
+        for f in ("kernels", "glsl")
+        for p in (ROOT / f).iterdir()
+        if p.suffix in {".cl", ".h", ".glsl", ".vert", ".frag"}
+    )
     assert int(result.stdout) == expected
 
 
@@ -123,8 +128,12 @@ def test_a_second_tree_runs_its_own_kernels(tmp_path):
         "print(resources.source('kernels', 'fpiwarp.cl').splitlines()[0])\n"
     )
     out = subprocess.run(
-        [sys.executable, "-c", probe], capture_output=True, text=True, check=True,
-        env={**__import__("os").environ, "PYTHONPATH": str(copy)}, cwd=tmp_path,
+        [sys.executable, "-c", probe],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**__import__("os").environ, "PYTHONPATH": str(copy)},
+        cwd=tmp_path,
     ).stdout.splitlines()
     for line in out[:3]:
         assert Path(line).resolve().is_relative_to(copy.resolve()), out

@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from fpiwarp import FPI, Compound, Mobius, RLinear
+from fpiwarp import Compound, Mobius, RLinear
 from fpiwarp.params import LAYOUT_VERSION, MAX_STAGES, STAGE_ROWS, Stage, evaluate, pack
 
 complexes = st.complex_numbers(min_magnitude=0.1, max_magnitude=10, allow_nan=False, allow_infinity=False)
@@ -85,7 +86,9 @@ def test_compound_jacobian_by_chain_rule(sample_fpi):
     c = h @ sample_fpi
     p = np.random.default_rng(3).uniform(0, 60, size=(10, 2))
     eps = 1e-6
-    fd = np.stack([(c(p + [eps, 0]) - c(p - [eps, 0])) / (2 * eps), (c(p + [0, eps]) - c(p - [0, eps])) / (2 * eps)], axis=-1)
+    fd = np.stack(
+        [(c(p + [eps, 0]) - c(p - [eps, 0])) / (2 * eps), (c(p + [0, eps]) - c(p - [0, eps])) / (2 * eps)], axis=-1
+    )
     assert np.allclose(c.jacobian(p), fd, rtol=1e-6, atol=1e-6)
     assert np.allclose(c.distortion(p), np.linalg.cond(c.jacobian(p)), rtol=1e-9)
 
@@ -105,8 +108,14 @@ def test_params_block_evaluates_like_the_map(sample_fpi, dtype, rtol):
     """The block reference (what kernels mirror) equals the float64 maps,
     to float32 rounding of the coefficients."""
     p = np.random.default_rng(4).uniform(-10, 70, size=(200, 2))
-    for f in [sample_fpi, sample_fpi.inverse, Mobius(1, 2j, 0.01, 1), RLinear(1.1, 0.2, 3j),
-              RLinear(2, 0, 1) @ sample_fpi, sample_fpi.inverse @ Mobius(1, 0, 0.001j, 1)]:
+    for f in [
+        sample_fpi,
+        sample_fpi.inverse,
+        Mobius(1, 2j, 0.01, 1),
+        RLinear(1.1, 0.2, 3j),
+        RLinear(2, 0, 1) @ sample_fpi,
+        sample_fpi.inverse @ Mobius(1, 0, 0.001j, 1),
+    ]:
         ref = f(p)
         got = evaluate(f.params(), p, dtype)
         scale = np.abs(ref).max()

@@ -4,11 +4,11 @@ offers (Backend, bind, prepare_warp)."""
 
 import numpy as np
 import pytest
+from kernel_cases import MAPS
 
 import fpiwarp
 from fpiwarp.backends import get_backend
 from fpiwarp.backends.protocol import Backend, BatchingBackend, GenericBoundMap, bind
-from kernel_cases import MAPS
 
 H, W = 24, 32
 SRC = [[0, 0], [31, 0], [31, 23], [0, 23]]

@@ -4,16 +4,16 @@ sit or how large they are; ill-conditioned and complex input refused
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from quad_fuzz import allowed_error, mirrored, mirrored_pairs, unit_pairs
+from strategies import orient_like, quads
 
 import fpiwarp
-from fpiwarp import FPI, ConstrainedFPI, DegenerateQuadError, LocalDeformation
-from fpiwarp import IllConditionedPairError
+from fpiwarp import FPI, ConstrainedFPI, DegenerateQuadError, IllConditionedPairError, LocalDeformation
 from fpiwarp._exactness import EXACT_RTOL, MAX_K
 from fpiwarp._quad import MAX_COORDINATE, check_quad, signed_area
 from fpiwarp.curves import curve_map, fpi_curve
-from quad_fuzz import allowed_error, mirrored, mirrored_pairs, unit_pairs
-from strategies import orient_like, quads
 
 SQ = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 D = np.array([[0.0, 0.0], [2.0, 0.1], [1.9, 1.2], [-0.1, 1.0]])

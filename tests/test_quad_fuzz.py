@@ -5,7 +5,6 @@ the documented tolerance; mirrored pairs are all refused."""
 
 import numpy as np
 import pytest
-
 from quad_fuzz import broad_pairs, classify, mirrored_pairs, tally, unit_pairs
 
 

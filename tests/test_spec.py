@@ -41,7 +41,11 @@ INVALID = [
     ({"src": [["0", "0"], [1, 0], [1, 1], [0, 1]], "dst": SQUARE}, "src[0]", "x is the text '0'"),
     ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1e200, 1], [0, 1]]}, "dst[2]", "x = 1e+200 lies beyond ±1e+100"),
     ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1, -1e308], [0, 1]]}, "dst[2]", "y = -1e+308 lies beyond"),
-    ({"steps": [{"src": SQUARE, "dst": [[0, 0], [10**400, 0], [1, 1], [0, 1]]}]}, "steps[0].dst[1]", "integer of 401 digits"),
+    (
+        {"steps": [{"src": SQUARE, "dst": [[0, 0], [10**400, 0], [1, 1], [0, 1]]}]},
+        "steps[0].dst[1]",
+        "integer of 401 digits",
+    ),
     ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1, True], [0, 1]]}, "dst[2]", "two numbers"),
     ({"src": SQUARE, "dst": [[0, 0], [1, 0], [1, 1, 1], [0, 1]]}, "dst[2]", "two numbers"),
     ({"src": SQUARE, "dst": MOVED, "edges": [0, 0]}, "edges", "two different edge numbers"),
@@ -166,8 +170,19 @@ def test_a_local_spec_builds_a_local_deformation():
         ({"src": [[0, 0], [5, 5], [10, 10], [0, 10]], "dst": MOVED}, "src", "collinear"),
         ({"steps": [{"src": SQUARE, "dst": MOVED}, {"src": SQUARE, "dst": SQUARE[::-1]}]}, "steps[1]", "orientation"),
         ({"src": SQUARE, "dst": [[0, 0], [10, 10], [10, 0], [0, 10]]}, "dst", "self-intersecting"),
-        ({"steps": [{"src": SQUARE, "dst": [[0, 0], [0, 0], [1, 1], [0, 1]]}]}, "steps[0].dst", "points 0 and 1 coincide"),
-        ({"src": [[1e8, 1e8], [1e8 + 1, 1e8], [1e8 + 1, 1e8 + 1], [1e8, 1e8 + 1]], "dst": [[1e8, 1e8], [1e8, 1e8 + 1], [1e8 + 1, 1e8 + 1], [1e8 + 1, 1e8]]}, "spec", "opposite orientations"),
+        (
+            {"steps": [{"src": SQUARE, "dst": [[0, 0], [0, 0], [1, 1], [0, 1]]}]},
+            "steps[0].dst",
+            "points 0 and 1 coincide",
+        ),
+        (
+            {
+                "src": [[1e8, 1e8], [1e8 + 1, 1e8], [1e8 + 1, 1e8 + 1], [1e8, 1e8 + 1]],
+                "dst": [[1e8, 1e8], [1e8, 1e8 + 1], [1e8 + 1, 1e8 + 1], [1e8 + 1, 1e8]],
+            },
+            "spec",
+            "opposite orientations",
+        ),
     ],
 )
 def test_degenerate_geometry_is_named_with_its_step(spec, where, problem):
@@ -290,7 +305,9 @@ def test_a_utf8_byte_order_mark_is_ignored(tmp_path):
     st.sampled_from(["src", "dst"]),
 )
 def test_coordinates_beyond_the_limit_are_named(value, point, axis, key):
-    spec = {"steps": [{"src": SQUARE, "dst": MOVED}, {"src": [list(p) for p in SQUARE], "dst": [list(p) for p in MOVED]}]}
+    spec = {
+        "steps": [{"src": SQUARE, "dst": MOVED}, {"src": [list(p) for p in SQUARE], "dst": [list(p) for p in MOVED]}]
+    }
     spec["steps"][1][key][point][axis] = value
     with pytest.raises(SpecError) as info:
         build_transform(spec)

@@ -93,7 +93,9 @@ def test_no_import_cycles():
     assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
 
 
-@pytest.mark.parametrize("name", sorted(n for n in MODULES if n.startswith("fpiwarp") and TREES["fpiwarp"] in MODULES[n].parents))
+@pytest.mark.parametrize(
+    "name", sorted(n for n in MODULES if n.startswith("fpiwarp") and TREES["fpiwarp"] in MODULES[n].parents)
+)
 def test_module_is_small(name):
     lines = len(MODULES[name].read_text(encoding="utf-8").splitlines())
     assert lines <= MAX_MODULE_LINES, f"{MODULES[name].relative_to(ROOT)} has {lines} lines"
@@ -123,7 +125,12 @@ def test_no_private_name_used_across_modules():
                     if alias.name in MODULES and alias.asname:
                         aliases[alias.asname] = alias.name
         for node in ast.walk(tree):
-            if (isinstance(node, ast.Attribute) and _private(node.attr) and isinstance(node.value, ast.Name)
-                    and node.value.id in aliases and aliases[node.value.id] != name):
+            if (
+                isinstance(node, ast.Attribute)
+                and _private(node.attr)
+                and isinstance(node.value, ast.Name)
+                and node.value.id in aliases
+                and aliases[node.value.id] != name
+            ):
                 found.append(f"{name}: {aliases[node.value.id]}.{node.attr}")
     assert not found, "private names used across modules: " + ", ".join(sorted(set(found)))

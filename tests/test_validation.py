@@ -8,7 +8,8 @@ import time
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import fpiwarp
 from fpiwarp import ArgumentError, ArgumentTypeError, FpiwarpError, SizeLimitError
@@ -253,5 +254,6 @@ def test_memory_is_the_machines_or_its_containers_limit(tmp_path, monkeypatch, l
     if limit is not None:
         path.write_text(limit)
     monkeypatch.setattr(validation, "CGROUP_MEMORY_MAX", str(path))
-    monkeypatch.setattr(validation.os, "sysconf", lambda name: {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": 16 * 2**20}[name])
+    pages = {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": 16 * 2**20}
+    monkeypatch.setattr(validation.os, "sysconf", lambda name: pages[name])
     assert validation.physical_memory() == expected

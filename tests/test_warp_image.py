@@ -26,7 +26,9 @@ def test_identity_fpi_returns_the_image(order):
     assert np.array_equal(out, img)
 
 
-@pytest.mark.parametrize("mode, pad_mode", [("edge", "edge"), ("reflect", "reflect"), ("wrap", "wrap"), ("constant", "constant")])
+@pytest.mark.parametrize(
+    "mode, pad_mode", [("edge", "edge"), ("reflect", "reflect"), ("wrap", "wrap"), ("constant", "constant")]
+)
 @pytest.mark.parametrize("order", [0, 1, 3])
 def test_integer_translation_shifts_exactly_with_each_border_mode(mode, pad_mode, order):
     """Output(x, y) = source(x - tx, y - ty), with numpy.pad's meaning of the

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from ..validation import check_image
 from ..backends.gl import bound_framebuffer, check_thread
+from ..validation import check_image
 from .renderer import DISPLAY_FORMATS, Renderer
 
 #: Framebuffer channels that hold the image's channels (display swizzle).

@@ -53,7 +53,6 @@ that made it: call the renderer from that thread, with the context current.
 import moderngl
 import numpy as np
 
-from ..validation import check_cval, check_image
 from ..backends.gl import (
     FULLSCREEN,
     GLWarper,
@@ -67,6 +66,7 @@ from ..backends.gl import (
     grid_mesh,
     set_uniform,
 )
+from ..validation import check_cval, check_image
 from .overlays import OverlayLayer, edge_curves, handle_triangles, outline_triangles
 
 METHODS = ("pixel", "mesh", "auto")
