@@ -10,7 +10,7 @@ Run it before and after a change and compare the two records::
 The record holds a SHA-256 of every output (every available backend x
 order x mode x dtype x channel count on two maps and two pictures, the
 local, constrained and compound maps, map_points on fixed points, the
-parameter blocks, and the command line's output files); ``compare`` lists
+parameter blocks, and the command line's output files and their pixels); ``compare`` lists
 the cases that differ and, given both ``.npz`` files, how much. Bit
 identity is only expected on one machine with the same drivers: this is a
 developer's tool, not a test (pytest does not collect it).
@@ -103,6 +103,15 @@ def _cases(backends):
                             fpiwarp.warp_image(img, m, order=o, cval=5, backend=b))
 
 
+def _pixels_digest(path):
+    """The decoded pixels of an output file (the file's bytes also depend on
+    the encoder's compression settings), read with Pillow directly."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return _digest(np.asarray(im))
+
+
 def _cli_cases(tmp):
     tmp = Path(tmp)
     sample = Path(fpiwarp.__file__).parent / "data" / "sample.png"
@@ -122,6 +131,7 @@ def _cli_cases(tmp):
         proc = subprocess.run([sys.executable, "-m", "fpiwarp", *args], capture_output=True, text=True)
         yield key + "/stdout", proc.stdout.replace(str(tmp), "<tmp>")
         yield key + "/file", hashlib.sha256(out.read_bytes()).hexdigest() if out.exists() else None
+        yield key + "/pixels", _pixels_digest(out) if out.exists() else None
 
 
 def record(path, arrays_path=None, backends=None):
