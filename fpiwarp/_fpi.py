@@ -8,6 +8,7 @@ the FPI of the swapped quads, exact and with the same K.
 """
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._errors import IllConditionedPairError
 from ._exactness import check_exact
@@ -78,7 +79,7 @@ class FPI(Transform):
     fpiwarp.DegenerateQuadError: src is self-intersecting (bow-tie): edge 0-1 crosses edge 2-3
     """
 
-    def __init__(self, src, dst):
+    def __init__(self, src: ArrayLike, dst: ArrayLike):
         z, w, flip = check_quad_pair(src, dst)
         # The closed form wants counter-clockwise quads in (x, y); solve for
         # mirrored quads otherwise and mirror the parts back.

@@ -24,7 +24,7 @@ class RLinear(Transform):
     fpiwarp.ArgumentError: singular R-linear map: |l1| == |l2|
     """
 
-    def __init__(self, l1, l2=0, l3=0):
+    def __init__(self, l1: complex, l2: complex = 0, l3: complex = 0):
         l1, l2, l3 = complex(l1), complex(l2), complex(l3)
         if not all(np.isfinite([l1.real, l1.imag, l2.real, l2.imag, l3.real, l3.imag])):
             raise ArgumentError("R-linear coefficients must be finite")

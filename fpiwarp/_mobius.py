@@ -36,7 +36,7 @@ class Mobius(Transform):
     fpiwarp.ArgumentError: Möbius coefficients need ad - bc != 0
     """
 
-    def __init__(self, a, b, c, d, *, center=None):
+    def __init__(self, a: complex, b: complex, c: complex, d: complex, *, center: complex | None = None):
         a, b, c, d = (_complex(v, n) for v, n in zip((a, b, c, d), "abcd"))
         det = a * d - b * c
         scale = max(abs(a * d), abs(b * c), 1e-300)

@@ -15,6 +15,7 @@ exactly what :func:`fpiwarp.params._tps` evaluates on the device.
 """
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._errors import ArgumentError, InverseNotConvergedError
 from ._linear import RLinear
@@ -70,7 +71,7 @@ class ThinPlateSpline(Transform):
     fpiwarp.ArgumentError: thin-plate spline centers are collinear or coincide: the fit is singular
     """
 
-    def __init__(self, centers, weights, lam):
+    def __init__(self, centers: ArrayLike, weights: ArrayLike, lam: tuple[complex, complex, complex]):
         self.centers = np.asarray(centers, dtype=np.complex128).reshape(-1)
         self.weights = np.asarray(weights, dtype=np.complex128).reshape(-1)
         if self.centers.shape != self.weights.shape:

@@ -14,15 +14,19 @@ class): ``map_complex(z)`` and ``wirtinger(z)`` on complex arrays, the
 map's own module calls these public names only.
 """
 
+from __future__ import annotations
+
 import abc
 import contextlib
 import contextvars
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._errors import ArgumentError, ArgumentTypeError
 from ._points import as_complex, as_xy
-from .block import pack
+from .block import Stage, pack
 
 _UNSOLVED_AS_NAN = contextvars.ContextVar("fpiwarp_unsolved_as_nan", default=False)
 
@@ -94,17 +98,17 @@ class Transform(abc.ABC):
     which the public methods forward to.
     """
 
-    def __call__(self, points):
+    def __call__(self, points: ArrayLike) -> np.ndarray:
         """Map (..., 2) points; float64 (..., 2) out. Points sent to infinity
         (the pole) come out as inf or nan."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return as_xy(self.map_complex(as_complex(points)))
 
-    def map_complex(self, z):
+    def map_complex(self, z: np.ndarray) -> np.ndarray:
         """The map's values at complex128 points ``z`` (any shape)."""
         return self._map(z)
 
-    def wirtinger(self, z):
+    def wirtinger(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(w, f_z, f_zbar) at complex128 points ``z``: values and Wirtinger
         derivatives, from which the Jacobian and the distortion follow."""
         return self._wirtinger(z)
@@ -117,37 +121,37 @@ class Transform(abc.ABC):
 
     @property
     @abc.abstractmethod
-    def inverse(self):
+    def inverse(self) -> Transform:
         """The inverse map."""
 
     @abc.abstractmethod
-    def stages(self):
+    def stages(self) -> list[Stage]:
         """Parameter-block stages, applied in order, that evaluate this map."""
 
-    def params(self):
+    def params(self) -> np.ndarray:
         """The flat float32 parameter block every backend reads."""
         return pack(self.stages())
 
-    def jacobian(self, points):
+    def jacobian(self, points: ArrayLike) -> np.ndarray:
         """Analytic Jacobian, shape (..., 2, 2), J[..., i, j] = d f_i / d x_j."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             _, fz, fzb = self.wirtinger(as_complex(points))
         return jacobian_from_wirtinger(fz, fzb)
 
-    def distortion(self, points):
+    def distortion(self, points: ArrayLike) -> np.ndarray:
         """Pointwise conformal distortion K >= 1 (ratio of the Jacobian's
         singular values); inf where the map folds over."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             _, fz, fzb = self.wirtinger(as_complex(points))
         return distortion_from_wirtinger(fz, fzb)
 
-    def dilation_at(self, points):
+    def dilation_at(self, points: ArrayLike) -> np.ndarray:
         """Pointwise conformal dilation |f_zbar| / |f_z| = (K - 1) / (K + 1)."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             _, fz, fzb = self.wirtinger(as_complex(points))
             return np.abs(fzb) / np.abs(fz)
 
-    def __matmul__(self, other):
+    def __matmul__(self, other: Transform) -> Compound:
         if not isinstance(other, Transform):
             return NotImplemented
         return Compound([other, self])
@@ -161,7 +165,7 @@ class Compound(Transform):
     is one Möbius), so kernels evaluate as few stages as possible.
     """
 
-    def __init__(self, steps):
+    def __init__(self, steps: Sequence[Transform]):
         flat = []
         for step in steps:
             if not isinstance(step, Transform):
@@ -171,12 +175,12 @@ class Compound(Transform):
             raise ArgumentError("a compound needs at least one step")
         self.steps = tuple(_fuse(flat))
 
-    def map_complex(self, z):
+    def map_complex(self, z: np.ndarray) -> np.ndarray:
         for step in self.steps:
             z = step.map_complex(z)
         return z
 
-    def wirtinger(self, z):
+    def wirtinger(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         w, fz, fzb = self.steps[0].wirtinger(z)
         for step in self.steps[1:]:
             w, fz, fzb = chain(step, w, fz, fzb)
@@ -185,10 +189,10 @@ class Compound(Transform):
     _map, _wirtinger = map_complex, wirtinger  # the former names, for code written against them
 
     @property
-    def inverse(self):
+    def inverse(self) -> Transform:
         return Compound([step.inverse for step in reversed(self.steps)])
 
-    def stages(self):
+    def stages(self) -> list[Stage]:
         return [stage for step in self.steps for stage in step.stages()]
 
     def __repr__(self):

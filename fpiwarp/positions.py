@@ -16,7 +16,7 @@ kernels do.
 
 import numpy as np
 
-from ._transform import unsolved_as_nan
+from ._transform import Transform, unsolved_as_nan
 from .backends.capabilities import NUMPY
 from .validation import check_output_shape, check_sizes, check_transform
 
@@ -48,7 +48,7 @@ def iter_source_positions(transform, output_shape, chunk_pixels=CHUNK_PIXELS):
             yield r0, r1, inverse(pixel_grid(r0, r1, cols))
 
 
-def source_positions(transform, output_shape):
+def source_positions(transform: Transform, output_shape: tuple[int, int]) -> np.ndarray:
     """float64 (rows, cols, 2): the source (x, y) that each pixel of an
     output of ``output_shape`` = (rows, cols) samples when ``transform``
     (source -> output) warps an image; see the module docstring for the

@@ -36,13 +36,14 @@ fpiwarp.SpecError: steps[0].src: must be a list of 4 [x, y] points, got a list o
 
 import json
 import numbers
+import os
 import re
 from importlib import resources
 
 from ._errors import DegenerateQuadError, SpecError
 from ._fpi import FPI
 from ._quad import MAX_COORDINATE, check_quad
-from ._transform import Compound
+from ._transform import Compound, Transform
 
 __all__ = ["SpecError", "build_transform", "load_spec", "parse_spec", "save_spec", "schema", "to_spec", "validate_spec"]
 
@@ -238,7 +239,7 @@ def _check_json_depth(text, name):
             depth -= 1
 
 
-def parse_spec(text, name="spec"):
+def parse_spec(text: str, name: str = "spec") -> Transform:
     """The transform of a spec given as JSON text; ``name`` prefixes errors.
     A leading UTF-8 byte-order mark is ignored."""
     if text.startswith("\ufeff"):
@@ -256,7 +257,7 @@ def parse_spec(text, name="spec"):
         raise SpecError(f"{name}: {exc}") from None
 
 
-def load_spec(path):
+def load_spec(path: str | os.PathLike) -> Transform:
     """The transform of the JSON spec file at ``path``."""
     with open(path, encoding="utf-8") as f:
         try:
@@ -266,7 +267,7 @@ def load_spec(path):
     return parse_spec(text, str(path))
 
 
-def to_spec(transform):
+def to_spec(transform: Transform) -> dict:
     """A spec (dict) describing ``transform``: an FPI, a local deformation
     or a compound of those. TypeError for maps a spec cannot describe."""
     if isinstance(transform, FPI):
@@ -282,7 +283,7 @@ def to_spec(transform):
     raise TypeError(f"a spec cannot describe a {type(transform).__name__}; use FPI, LocalDeformation or Compound")
 
 
-def save_spec(transform, path, *, overwrite=False):
+def save_spec(transform: Transform, path: str | os.PathLike, *, overwrite: bool = False) -> None:
     """Write ``transform`` as a JSON spec file, atomically."""
     from .io import atomic_write
 
@@ -290,7 +291,7 @@ def save_spec(transform, path, *, overwrite=False):
     atomic_write(path, lambda f: f.write(text.encode("utf-8")), overwrite=overwrite)
 
 
-def schema():
+def schema() -> dict:
     """The JSON schema (draft 2020-12) of specs, as a dict."""
     text = resources.files("fpiwarp.data").joinpath("spec.schema.json").read_text(encoding="utf-8")
     return json.loads(text)

@@ -66,7 +66,7 @@ def _probe(name):
     return module, reason
 
 
-def backend_status():
+def backend_status() -> dict[str, str | None]:
     """{name: None if available else the reason why not}, for every backend."""
     with _lock:
         for name in REGISTRY:
@@ -75,7 +75,7 @@ def backend_status():
         return {name: _status[name][1] for name in REGISTRY}
 
 
-def available_backends():
+def available_backends() -> list[str]:
     """Names of the backends that can run here."""
     return [name for name, reason in backend_status().items() if reason is None]
 
@@ -87,7 +87,7 @@ def check_backend_name(name):
     return name
 
 
-def backend_capabilities(name):
+def backend_capabilities(name: str) -> Capabilities:
     """What backend ``name`` accepts: a :class:`~fpiwarp.backends.capabilities.Capabilities`
     (dtypes, orders, modes, size limits, options, batching); known without
     importing the backend."""
