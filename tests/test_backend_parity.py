@@ -3,9 +3,24 @@
 import kernel_cases
 import numpy as np
 import pytest
+from kernel_cases import (
+    MAPS,
+    MODES,
+    ORDERS,
+    Staged,
+    assert_close_relative,
+    compare_warp,
+    frame_points,
+    make_image,
+    region_map,
+    tps_inverse_stage,
+    tps_map,
+    tps_stage,
+)
 
 import fpiwarp
-from fpiwarp import FPI, RLinear
+from fpiwarp import FPI, Mobius, RLinear
+from fpiwarp.backends import get_backend
 from fpiwarp.params import evaluate
 
 
@@ -78,3 +93,57 @@ def test_public_api_with_2d_image(any_backend):
     want = fpiwarp.warp_image(img, kernel_cases.sample_fpi())
     assert got.shape == (48, 64)
     kernel_cases.assert_images_agree(got[..., None], want[..., None], np.uint8)
+
+
+def test_map_points_regions_match_reference_away_from_their_lines(any_backend, rng):
+    transform = region_map()
+    pts = frame_points(rng)
+    far = (np.abs(pts[:, 0] - 52) > 1e-3) & (np.abs(pts[:, 1] - 6) > 1e-3)
+    want = evaluate(transform.params(), pts[far], np.float64)
+    assert_close_relative(fpiwarp.map_points(transform, pts[far], backend=any_backend), want)
+    moved = fpiwarp.map_points(transform, np.array([[60.0, 20.0], [30.0, 2.0]]), backend=any_backend)
+    assert_close_relative(moved, np.array([[62.0, 21.0], [0.9 * 30 - 0.1 * 2 + 1, 0.1 * 30 + 0.9 * 2 - 2]]))
+
+
+@pytest.mark.parametrize(
+    "transform",
+    [Mobius(1, 0, 0.05, -1 - 0.5j).inverse, RLinear(1, 0, 30 + 20j) @ Mobius(1, 0, 0.05, 1, center=0).inverse],
+    ids=["pole-at-row-10-col-20", "pole-after-a-shift"],
+)
+def test_pole_inside_the_output_is_handled_like_the_reference(any_backend, transform):
+    """Positions near the pole are huge or non-finite: handled like the
+    reference (clipped, never a crash)."""
+    img = make_image((40, 60, 3), np.uint8)
+    for mode in MODES:
+        compare_warp(get_backend(any_backend), img, transform, (40, 60), 1, mode, [5, 6, 7])
+
+
+def test_non_finite_positions_give_cval_in_every_mode(any_backend):
+    """A Newton inverse that cannot converge (no steps, zero tolerance) sends
+    every pixel outside: the output is cval everywhere, whatever the mode."""
+    transform = Staged([tps_stage()], [tps_inverse_stage(iters=0, tol=0.0)])
+    img = make_image((20, 30, 4), np.uint8)
+    for order in ORDERS:
+        for mode in MODES:
+            out = fpiwarp.warp_image(img, transform, (20, 30), order=order, mode=mode,
+                                     cval=[1.0, 2, 3, 254.6], backend=any_backend)
+            assert np.all(out == np.array([1, 2, 3, 255], np.uint8))
+
+
+def _constrained_maps():
+    src = [[0, 0], [63, 0], [63, 47], [0, 47]]
+    return {
+        "constrained": fpiwarp.ConstrainedFPI(src, [[4, 3], [60, -2], [66, 50], [-3, 44]], edges=(0, 2)),
+        "local": fpiwarp.LocalDeformation(src, [[4, 3], [60, -2], [66, 50], [-3, 44]], edges=(3, 1)),
+    }
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@pytest.mark.parametrize("name", ["tps", "region", "compound", "constrained", "local"])
+def test_warp_image_of_tps_regions_and_compounds(any_backend, name, order):
+    makers = {"tps": tps_map, "region": region_map, "compound": MAPS["compound"],
+              "constrained": lambda: _constrained_maps()["constrained"], "local": lambda: _constrained_maps()["local"]}
+    transform = makers[name]()
+    img = make_image((48, 64, 3), np.uint8, seed=5)
+    for mode in MODES:
+        compare_warp(get_backend(any_backend), img, transform, (48, 64), order, mode, [10, 20, 30])
