@@ -14,6 +14,8 @@ import struct
 import numpy as np
 from PIL import Image
 
+from ._errors import ArgumentError
+
 #: The EXIF Orientation tag.
 ORIENTATION_TAG = 0x0112
 #: The choices of read_image's ``orientation`` keyword.
@@ -45,9 +47,9 @@ def to_stored(array, orientation):
 
 
 def check_choice(orientation):
-    """Raise ValueError unless ``orientation`` is one of ORIENTATIONS."""
+    """Raise ArgumentError (a ValueError) unless ``orientation`` is one of ORIENTATIONS."""
     if orientation not in ORIENTATIONS:
-        raise ValueError(f"orientation must be one of {', '.join(map(repr, ORIENTATIONS))}, got {orientation!r}")
+        raise ArgumentError(f"orientation must be one of {', '.join(map(repr, ORIENTATIONS))}, got {orientation!r}")
 
 
 def orientation_of(exif):

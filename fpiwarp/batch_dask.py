@@ -22,14 +22,14 @@ _WORKER_WARPERS = collections.OrderedDict()
 _WORKER_LOCK = threading.Lock()
 
 
-def _dask_task(token, warper, src, dst, overwrite):
+def _dask_task(token, warper, src, dst, options):
     """One file on a Dask worker; the warper (and its cached map) is kept
     per worker process for the run identified by ``token``."""
     with _WORKER_LOCK:
         warper = _WORKER_WARPERS.setdefault(token, warper)
         while len(_WORKER_WARPERS) > 2:
             _WORKER_WARPERS.popitem(last=False)
-    return process_file(Path(src), Path(dst), warper, overwrite)
+    return process_file(Path(src), Path(dst), warper, options)
 
 
 def _dask_client(scheduler):
@@ -45,7 +45,7 @@ def _dask_client(scheduler):
         raise ConnectionError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from None
 
 
-def run_on_dask(pairs, warper, overwrite, scheduler, record):
+def run_on_dask(pairs, warper, options, scheduler, record):
     """Run the (input, output) ``pairs`` as tasks on the cluster at
     ``scheduler`` (an address or a ``distributed.Client``); ``record`` each
     result as it arrives."""
@@ -63,7 +63,7 @@ def run_on_dask(pairs, warper, overwrite, scheduler, record):
             if pair is None:
                 return None
             src, dst = (str(Path(p).absolute()) for p in pair)
-            fut = client.submit(_dask_task, token, warper, src, dst, overwrite, pure=False)
+            fut = client.submit(_dask_task, token, warper, src, dst, options, pure=False)
             futures.append(fut)
             return fut
 

@@ -4,10 +4,22 @@ Shared by the folder runs in threads (:mod:`fpiwarp.batch_folders`) and
 on a Dask cluster (:mod:`fpiwarp.batch_dask`).
 """
 
+from dataclasses import dataclass
+
 from ._errors import FpiwarpError, OutputExistsError
 from .io import check_writable, read_image, write_image
 
-__all__ = ["FILE_ERRORS", "process_file", "reason_of"]
+__all__ = ["FILE_ERRORS", "FileOptions", "process_file", "reason_of"]
+
+
+@dataclass(frozen=True)
+class FileOptions:
+    """How a batch reads and writes each file: ``overwrite`` outputs that
+    exist, and the EXIF ``orientation`` rule of :func:`fpiwarp.read_image`
+    ("apply" or "stored")."""
+
+    overwrite: bool = False
+    orientation: str = "apply"
 
 
 def reason_of(exc):
@@ -23,17 +35,17 @@ def reason_of(exc):
 FILE_ERRORS = (FpiwarpError, OSError)
 
 
-def process_file(src, dst, warper, overwrite):
+def process_file(src, dst, warper, options):
     """Read, warp and write one file; return (status, input path, reason)."""
     try:
-        if not overwrite and dst.is_file():
+        if not options.overwrite and dst.is_file():
             return "skipped", str(src), None
-        image, info = read_image(src)
+        image, info = read_image(src, orientation=options.orientation)
         dtype, channels = image.dtype, (1 if image.ndim == 2 else image.shape[2])
         check_writable(dst, dtype, channels, info)
         out = warper(image)
         dst.parent.mkdir(parents=True, exist_ok=True)
-        write_image(dst, out, info, overwrite=overwrite)
+        write_image(dst, out, info, overwrite=options.overwrite)
         return "done", str(src), None
     except OutputExistsError:
         return "skipped", str(src), None

@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ._errors import ArgumentError, FpiwarpError, OutputExistsError
-from .batch_file import FILE_ERRORS, process_file, reason_of
+from ._io_orientation import check_choice as check_orientation
+from .batch_file import FILE_ERRORS, FileOptions, process_file, reason_of
 from .io import TEMP_SUFFIX, check_writable, is_temp_file, read_image, write_image
 from .warper import Warper
 
@@ -165,6 +166,7 @@ def run_batch(
     scheduler=None,
     summary=None,
     backend_options=None,
+    orientation="apply",
 ):
     """Warp every image file of ``input_dir`` into ``output_dir``.
 
@@ -178,10 +180,13 @@ def run_batch(
     ``progress(summary)`` is called after each file. Returns the
     :class:`BatchSummary` (or fills ``summary``); on KeyboardInterrupt the
     files in progress are finished or cleaned up, the summary is marked
-    interrupted and the interrupt re-raised.
+    interrupted and the interrupt re-raised. ``orientation`` is passed to
+    :func:`fpiwarp.read_image` ("apply": warp each photo as viewers show it).
     """
     if int(jobs) < 1:
         raise ArgumentError(f"jobs must be at least 1, got {jobs}")
+    check_orientation(orientation)
+    options = FileOptions(overwrite=bool(overwrite), orientation=orientation)
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
                     backend_options=backend_options)
     pairs = plan(input_dir, output_dir, pattern)
@@ -199,18 +204,18 @@ def run_batch(
         if scheduler is not None:
             from .batch_dask import run_on_dask
 
-            run_on_dask(pairs, warper, overwrite, scheduler, record)
+            run_on_dask(pairs, warper, options, scheduler, record)
         elif warper.capabilities.thread_safe:
-            _run_in_worker_threads(pairs, warper, overwrite, int(jobs), record)
+            _run_in_worker_threads(pairs, warper, options, int(jobs), record)
         else:
-            _run_in_this_thread(pairs, warper, overwrite, int(jobs), record)
+            _run_in_this_thread(pairs, warper, options, int(jobs), record)
     except KeyboardInterrupt:
         summary.interrupted = True
         raise
     return summary
 
 
-def _run_in_worker_threads(pairs, warper, overwrite, jobs, record):
+def _run_in_worker_threads(pairs, warper, options, jobs, record):
     """Whole files (read, warp, write) in ``jobs`` threads; at most ``jobs``
     files are queued beyond those running, bounding memory."""
     pool = ThreadPoolExecutor(jobs, thread_name_prefix="fpiwarp")
@@ -218,7 +223,7 @@ def _run_in_worker_threads(pairs, warper, overwrite, jobs, record):
     try:
         for src, dst in pairs:
             _wait_below(inflight, 2 * jobs, record)
-            inflight.add(pool.submit(process_file, src, dst, warper, overwrite))
+            inflight.add(pool.submit(process_file, src, dst, warper, options))
         for fut in _in_completion_order(inflight):
             record(fut.result())
     except KeyboardInterrupt:
@@ -258,24 +263,24 @@ def _in_completion_order(futures):
 class _Read:
     """Reading one file in a worker thread for a backend bound to one thread."""
 
-    def __init__(self, src, dst, overwrite):
+    def __init__(self, src, dst, options):
         self.src, self.dst = src, dst
-        if not overwrite and dst.is_file():
+        if not options.overwrite and dst.is_file():
             self.result = ("skipped", str(src), None)
             return
         self.result = None
         try:
-            self.image, self.info = read_image(src)
+            self.image, self.info = read_image(src, orientation=options.orientation)
             channels = 1 if self.image.ndim == 2 else self.image.shape[2]
             check_writable(dst, self.image.dtype, channels, self.info)
         except FILE_ERRORS as exc:
             self.result = ("failed", str(src), reason_of(exc))
 
 
-def _write(read, out, overwrite):
+def _write(read, out, options):
     try:
         read.dst.parent.mkdir(parents=True, exist_ok=True)
-        write_image(read.dst, out, read.info, overwrite=overwrite)
+        write_image(read.dst, out, read.info, overwrite=options.overwrite)
         return "done", str(read.src), None
     except OutputExistsError:
         return "skipped", str(read.src), None
@@ -283,7 +288,7 @@ def _write(read, out, overwrite):
         return "failed", str(read.src), reason_of(exc)
 
 
-def _run_in_this_thread(pairs, warper, overwrite, jobs, record):
+def _run_in_this_thread(pairs, warper, options, jobs, record):
     """Reading and writing in ``jobs`` threads, warping in this thread:
     GPU contexts (GL above all) belong to the thread that made them."""
     pool = ThreadPoolExecutor(jobs, thread_name_prefix="fpiwarp-io")
@@ -296,7 +301,7 @@ def _run_in_this_thread(pairs, warper, overwrite, jobs, record):
                 pair = next(todo, None)
                 if pair is None:
                     break
-                reads.append(pool.submit(_Read, pair[0], pair[1], overwrite))
+                reads.append(pool.submit(_Read, pair[0], pair[1], options))
             if not reads:
                 break
             read = reads.popleft().result()
@@ -310,7 +315,7 @@ def _run_in_this_thread(pairs, warper, overwrite, jobs, record):
                 continue
             del read.image
             _wait_below(writes, jobs, record)
-            writes.add(pool.submit(_write, read, out, overwrite))
+            writes.add(pool.submit(_write, read, out, options))
         for fut in _in_completion_order(writes):
             record(fut.result())
     except KeyboardInterrupt:

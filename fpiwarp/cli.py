@@ -43,7 +43,7 @@ from ._sampling import MODES, ORDERS
 from ._warp import warp_image
 from .backends import REGISTRY, backend_status
 from .batch import BatchSummary, Progress, list_inputs, run_batch
-from .io import check_writable, read_image, write_image
+from .io import ORIENTATIONS, check_writable, read_image, write_image
 from .metrics import grid
 from .spec import load_spec
 
@@ -189,7 +189,7 @@ def cmd_warp(args):
     if not Path(args.input).exists():
         raise FileNotFoundError(f"no such file: {args.input}")
     _check_output(args.input, args.output, args.overwrite)
-    image, info = read_image(args.input)
+    image, info = read_image(args.input, orientation=args.orientation)
     check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
     warped = warp_image(
         image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend
@@ -226,6 +226,7 @@ def cmd_batch(args):
             progress=progress,
             scheduler=args.scheduler,
             summary=summary,
+            orientation=args.orientation,
         )
     except KeyboardInterrupt:
         progress.close()
@@ -277,7 +278,7 @@ def cmd_preview(args):
         raise FileNotFoundError(f"no such file: {args.input}")
     if args.screenshot is not None:
         _check_output(args.input, args.screenshot, args.overwrite)
-    image, info = read_image(args.input)
+    image, info = read_image(args.input, orientation=args.orientation)
     transform = _preview_transform(args, image)
     overlays = () if args.no_overlay else ("handles", "outline")
     if args.screenshot is not None:
@@ -318,6 +319,17 @@ def _add_warp_options(p):
         "Python API's output_shape is (rows, cols), i.e. (HEIGHT, WIDTH)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace outputs that exist")
+    _add_orientation_option(p)
+
+
+def _add_orientation_option(p):
+    p.add_argument(
+        "--orientation",
+        choices=ORIENTATIONS,
+        default="apply",
+        help="EXIF orientation: 'apply' (default) warps photos as viewers show them and writes them upright; "
+        "'stored' keeps the stored pixels and their tag",
+    )
 
 
 def build_parser():
@@ -386,6 +398,7 @@ def build_parser():
                    help="no handles or outline: the screenshot is exactly the warped image")
     p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
     p.add_argument("--overwrite", action="store_true", help="replace the screenshot if it exists")
+    _add_orientation_option(p)
     p.set_defaults(func=cmd_preview)
 
     p = sub.add_parser("backends", help="list backends and why any cannot run")

@@ -314,3 +314,38 @@ def test_extreme_cval_on_the_command_line(image_file, tmp_path, capsys):
     code, _, err = _run(capsys, "warp", image_file, tmp_path / "o.png", "--src", SRC, "--dst", DST,
                         "--cval", "inf", "--overwrite")
     assert code == 2 and "finite" in _one_clean_line(err)
+
+
+def _portrait_jpeg(path):
+    """A photo stored 45 wide and 30 high with EXIF Orientation 6 (shown
+    30 wide and 45 high)."""
+    from PIL import Image
+
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(np.full((30, 45, 3), 128, np.uint8)).save(path, quality=95, exif=exif.tobytes())
+
+
+def _size_and_tag(path):
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return im.size, im.getexif().get(0x0112, 1)
+
+
+@pytest.mark.parametrize("choice, size, tag", [("apply", (30, 45), 1), ("stored", (45, 30), 6)])
+def test_warp_and_batch_apply_the_exif_orientation_or_keep_it(tmp_path, capsys, choice, size, tag):
+    """Corners are picked on the picture as viewers show it: 'apply' (the
+    default) warps that picture and writes it upright with no tag;
+    'stored' warps the stored pixels and keeps their tag."""
+    (tmp_path / "in").mkdir()
+    _portrait_jpeg(tmp_path / "in" / "p.jpg")
+    args = ["--orientation", choice] if choice != "apply" else []
+    quad = "0,0,20,0,20,20,0,20"
+    assert _run(capsys, "warp", str(tmp_path / "in" / "p.jpg"), str(tmp_path / "out.jpg"),
+                "--src", quad, "--dst", quad, *args)[0] == 0
+    assert _size_and_tag(tmp_path / "out.jpg") == (size, tag)
+    spec = tmp_path / "id.json"
+    spec.write_text(json.dumps({"src": [[0, 0], [20, 0], [20, 20], [0, 20]], "dst": [[0, 0], [20, 0], [20, 20], [0, 20]]}))
+    assert _run(capsys, "batch", str(spec), str(tmp_path / "in"), str(tmp_path / "out"), "--no-progress", *args)[0] == 0
+    assert _size_and_tag(tmp_path / "out" / "p.jpg") == (size, tag)
