@@ -346,6 +346,7 @@ def test_warp_and_batch_apply_the_exif_orientation_or_keep_it(tmp_path, capsys, 
                 "--src", quad, "--dst", quad, *args)[0] == 0
     assert _size_and_tag(tmp_path / "out.jpg") == (size, tag)
     spec = tmp_path / "id.json"
-    spec.write_text(json.dumps({"src": [[0, 0], [20, 0], [20, 20], [0, 20]], "dst": [[0, 0], [20, 0], [20, 20], [0, 20]]}))
+    square = [[0, 0], [20, 0], [20, 20], [0, 20]]
+    spec.write_text(json.dumps({"src": square, "dst": square}))
     assert _run(capsys, "batch", str(spec), str(tmp_path / "in"), str(tmp_path / "out"), "--no-progress", *args)[0] == 0
     assert _size_and_tag(tmp_path / "out" / "p.jpg") == (size, tag)
