@@ -142,7 +142,7 @@ class Transform(abc.ABC):
         return distortion_from_wirtinger(fz, fzb)
 
     def dilation_at(self, points):
-        """Pointwise conformal dilation |f_zbar| / |f_z| = (K - 1) / (K + 1)."""
+        """Pointwise conformal dilation ``|f_zbar| / |f_z| = (K - 1) / (K + 1)``."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             _, fz, fzb = self.wirtinger(as_complex(points))
             return np.abs(fzb) / np.abs(fz)

@@ -2,11 +2,11 @@
 
 For a map f with Wirtinger derivatives f_z, f_zbar:
 
-- conformal distortion K = (|f_z| + |f_zbar|) / (|f_z| - |f_zbar|) >= 1
-  (inf where f folds over, |f_zbar| >= |f_z|);
-- conformal dilation d = |f_zbar| / |f_z| = (K - 1) / (K + 1), 0 iff
+- conformal distortion ``K = (|f_z| + |f_zbar|) / (|f_z| - |f_zbar|) >= 1``
+  (inf where f folds over, ``|f_zbar| >= |f_z|``);
+- conformal dilation ``d = |f_zbar| / |f_z| = (K - 1) / (K + 1)``, 0 iff
   conformal, > 1 where f reverses orientation;
-- Jacobian determinant J = |f_z|² - |f_zbar|², and the area distortion
+- Jacobian determinant ``J = |f_z|² - |f_zbar|²``, and the area distortion
   max J + 1 / min J (inf when min J <= 0: a fold-over or a singularity).
 
 Maps that are :class:`~fpiwarp.Transform` objects use their analytic
@@ -50,14 +50,14 @@ def conformal_distortion(f, points, h=1e-6):
 
 
 def conformal_dilation(f, points, h=1e-6):
-    """Pointwise conformal dilation |f_zbar| / |f_z| at (..., 2) ``points``."""
+    """Pointwise conformal dilation ``|f_zbar| / |f_z|`` at (..., 2) ``points``."""
     fz, fzb = _derivatives(f, points, h)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.abs(fzb) / np.abs(fz)
 
 
 def jacobian_determinant(f, points, h=1e-6):
-    """Pointwise Jacobian determinant |f_z|² - |f_zbar|² (> 0: orientation kept)."""
+    """Pointwise Jacobian determinant ``|f_z|² - |f_zbar|²`` (> 0: orientation kept)."""
     fz, fzb = _derivatives(f, points, h)
     return np.abs(fz) ** 2 - np.abs(fzb) ** 2
 
