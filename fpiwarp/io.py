@@ -72,8 +72,9 @@ def read_image(
 ) -> tuple[np.ndarray, ImageInfo]:
     """Read an image file; return ``(array, info)``.
 
-    8- and 16-bit PNG needs numpy alone; other formats (JPEG, TIFF,
-    palette or interlaced PNG, ...) need ``pip install 'fpiwarp[io]'``.
+    8- and 16-bit PNG is decoded by fpiwarp itself; the other formats by
+    Pillow (a dependency); TIFFs Pillow cannot read (16-bit colour or
+    gray+alpha) need tifffile: ``pip install 'fpiwarp[io]'``.
 
     Parameters
     ----------
