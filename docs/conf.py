@@ -58,6 +58,11 @@ sphinx_gallery_conf = {
     "image_scrapers": ("matplotlib",),
     "show_memory": False,
     "plot_gallery": "True",
+    # Code in the examples links to the API reference, and the API pages list
+    # the examples that use each name (minigallery directives).
+    "doc_module": ("fpiwarp",),
+    "reference_url": {"fpiwarp": None},
+    "backreferences_dir": "_generated/backreferences",
 }
 
 html_theme = "pydata_sphinx_theme"
