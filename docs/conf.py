@@ -111,4 +111,35 @@ def _backend_options_table():
         target.write_text(text)
 
 
+
+def _cli_help():
+    """docs/_generated/cli.rst: ``fpiwarp --help`` and each command's help,
+    from the parser itself (fpiwarp.cli.build_parser)."""
+    import argparse
+
+    from fpiwarp.cli import build_parser
+
+    parser = build_parser()
+    parser.prog = "fpiwarp"
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    columns = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = "88"  # argparse wraps to the terminal: fix it for a stable page
+    parts = [("fpiwarp", parser)] + [(f"fpiwarp {name}", p) for name, p in sub.choices.items()]
+    lines = []
+    for title, p in parts:
+        p.prog = title
+        lines += [f"``{title}``", "^" * (len(title) + 4), "", ".. code-block:: text", ""]
+        lines += ["   " + line if line else "" for line in p.format_help().rstrip().splitlines()]
+        lines.append("")
+    if columns is None:
+        del os.environ["COLUMNS"]
+    else:
+        os.environ["COLUMNS"] = columns
+    target = Path(__file__).parent / "_generated" / "cli.rst"
+    text = "\n".join(lines) + "\n"
+    if not target.exists() or target.read_text() != text:
+        target.write_text(text)
+
+
 _backend_options_table()
+_cli_help()
