@@ -39,12 +39,19 @@ with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
 #
 # .. literalinclude:: /../fpiwarp/examples/qt_embed.py
 #    :language: python
-#    :start-at: self.renderer = Renderer(
+#    :start-at: def initializeGL(self):
 #    :end-before: def _gl(self, event):
 #    :dedent: 8
 #
 # In moderngl-window, ``fpiwarp/examples/mglw_embed.py`` does the same in
-# ``__init__`` and ``on_render``:
+# its ``WindowConfig``'s ``__init__`` and ``on_render``; the mouse goes to
+# :class:`fpiwarp.viewer.Editor`, which moves the handles:
+#
+# .. literalinclude:: /../fpiwarp/examples/mglw_embed.py
+#    :language: python
+#    :start-at: def __init__(self, **kwargs):
+#    :end-before: def _gl(self, x, y):
+#    :dedent: 8
 #
 # .. literalinclude:: /../fpiwarp/examples/mglw_embed.py
 #    :language: python
