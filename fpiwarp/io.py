@@ -87,7 +87,7 @@ def read_image(
         the tag (``info.orientation`` then says what a viewer would do).
     max_pixels : int, optional
         An image of more pixels is refused from its header, before
-        decoding; default :data:`MAX_PIXELS`, Pillow's limit.
+        decoding; default ``fpiwarp.io.MAX_PIXELS``, Pillow's limit.
 
     Returns
     -------
@@ -145,7 +145,7 @@ def write_image(path: str | os.PathLike, array, info: ImageInfo | None = None, *
     array : array_like
         (H, W) or (H, W, C), uint8, uint16 or float32, RGB(A) order.
     info : ImageInfo, optional
-        From :func:`read_image`: the metadata (ICC profile, EXIF, PNG
+        From :func:`~fpiwarp.read_image`: the metadata (ICC profile, EXIF, PNG
         chunks) and mode to keep where the format allows.
     overwrite : bool, optional
         Replace an existing file; default False.

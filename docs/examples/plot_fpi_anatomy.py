@@ -2,8 +2,8 @@
 Inside the FPI: two Möbius maps and one affine map
 ==================================================
 
-The FPI is ``f = m_W⁻¹ ∘ A ∘ m_Z`` (:attr:`fpiwarp.FPI.m_src`,
-:attr:`~fpiwarp.FPI.linear`, :attr:`~fpiwarp.FPI.m_dst`). The Möbius map
+The FPI is ``f = m_W⁻¹ ∘ A ∘ m_Z``, with its parts in ``f.m_src``,
+``f.linear`` and ``f.m_dst`` (see :class:`fpiwarp.FPI`). The Möbius map
 ``m_Z`` sends the source quad's corners to a parallelogram; the affine map
 ``A`` sends that parallelogram to the one ``m_W`` makes of the target
 quad; ``m_W⁻¹`` brings it home. Möbius maps are conformal (small circles
