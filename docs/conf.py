@@ -13,6 +13,7 @@ import fpiwarp
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # benchmarks/ for the gallery's comparison methods
+sys.path.insert(0, str(ROOT / "docs"))  # gallery_order
 
 # Gallery examples render offscreen and pick their backends here.
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -70,7 +71,7 @@ sphinx_gallery_conf = {
     "only_warn_on_example_error": False,
     "download_all_examples": False,
     "remove_config_comments": True,
-    "within_subsection_order": "FileNameSortKey",
+    "within_subsection_order": "gallery_order.ExampleOrder",
     "matplotlib_animations": False,
     "image_scrapers": ("matplotlib",),
     "show_memory": False,
