@@ -8,6 +8,13 @@ class keeps the standard exception it was before as a second base
 ``ArithmeticError``, ``ImportError``), so ``except ValueError`` still
 catches what it caught. Messages are one line naming the argument, field
 or file and the problem.
+
+>>> import fpiwarp
+>>> try:
+...     fpiwarp.FPI([[0, 0], [1, 0], [2, 0], [0, 1]], [[0, 0], [1, 0], [1, 1], [0, 1]])
+... except fpiwarp.FpiwarpError as exc:
+...     print(type(exc).__name__, isinstance(exc, ValueError))
+DegenerateQuadError True
 """
 
 import errno

@@ -62,12 +62,43 @@ class FPI(Transform):
     pole z∞ onto the plane minus its image w∞, and has the constant
     conformal distortion ``K``.
 
-    Invalid quads raise DegenerateQuadError. A pair that float64 cannot
-    build exactly (thin quads, K > 1e6) raises IllConditionedPairError, a
-    DegenerateQuadError: every map built meets its corners, its inverse's
-    corners and round trips around ``src`` within 1e-9 of the quad's size
-    plus the rounding of the coordinates (see :mod:`fpiwarp._exactness`).
+    Parameters
+    ----------
+    src, dst : array_like, shape (4, 2)
+        The source and target quads, ``(x, y)`` points (x = column, y = row
+        in images), simple (convex or not), of the same orientation.
 
+    Attributes
+    ----------
+    K : float
+        The constant conformal distortion, >= 1.
+    dilation : float
+        ``(K - 1) / (K + 1)``.
+    pole : ndarray (2,) or None
+        The point the map sends to infinity (None for an affine map).
+    inverse : FPI
+        The exact inverse, again an FPI.
+    m_src, linear, m_dst : Mobius, RLinear, Mobius
+        The parts, ``f = m_dst⁻¹ ∘ linear ∘ m_src``.
+
+    Raises
+    ------
+    DegenerateQuadError
+        Invalid quads: wrong shape, NaN/inf, coincident or collinear points,
+        zero area, a bow-tie, or source and target of opposite orientation.
+    IllConditionedPairError
+        A pair that float64 cannot build exactly (thin quads, K > 1e6), a
+        DegenerateQuadError: every map built meets its corners, its
+        inverse's corners and round trips around ``src`` within 1e-9 of the
+        quad's size plus the rounding of the coordinates (see
+        :mod:`fpiwarp._exactness`).
+
+    See Also
+    --------
+    warp_image, map_points, ConstrainedFPI, LocalDeformation
+
+    Examples
+    --------
     >>> f = FPI([[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [2, 0], [2, 1], [0, 1]])
     >>> round(f.K, 12)
     2.0

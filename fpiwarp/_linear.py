@@ -15,6 +15,20 @@ from .block import LinearPart, Stage
 class RLinear(Transform):
     """The affine map A(z) = l1 z + l2 conj(z) + l3 of the plane.
 
+    Parameters
+    ----------
+    l1, l2, l3 : complex
+        The coefficients; a point (x, y) is z = x + iy. ``l2 = 0`` gives a
+        similarity; ``|l1| == |l2|`` is singular. Its conformal distortion
+        is ``K = (|l1| + |l2|) / (|l1| - |l2|)``, the same everywhere.
+
+    Raises
+    ------
+    ArgumentError
+        ``|l1| == |l2|`` or coefficients that are not finite.
+
+    Examples
+    --------
     >>> A = RLinear(1, 0, 3 + 4j)       # translation by (3, 4)
     >>> A([[1.0, 1.0]]).tolist()
     [[4.0, 5.0]]

@@ -70,7 +70,8 @@ def _check_line_bounds(q, k, outward, name):
 class LocalDeformation(Transform):
     """Constrained FPI inside the region of interest, similarities outside.
 
-    Parameters are those of :class:`~fpiwarp.ConstrainedFPI`. Opposite
+    Parameters are those of :class:`~fpiwarp.ConstrainedFPI` (``src``,
+    ``dst``, ``edges``, ``points_per_edge``, ``delta``). Opposite
     edges give two outer half-planes, each following its edge's
     similarity; adjacent edges give one shared similarity beyond both
     lines (dst must be src under one similarity at their three corners,
@@ -79,6 +80,25 @@ class LocalDeformation(Transform):
     or ValueError. See the module docstring for what happens beyond the
     free edges and where the outer half-planes meet.
 
+    Parameters
+    ----------
+    src, dst : array_like, shape (4, 2)
+        The region of interest and where its corners go, ``(x, y)``.
+    edges : pair of int
+        The constrained edges; edge k joins point k and point k + 1.
+    points_per_edge, delta
+        As in :class:`~fpiwarp.ConstrainedFPI`.
+
+    Raises
+    ------
+    DegenerateQuadError, FoldOverError
+        As :class:`~fpiwarp.ConstrainedFPI`.
+    ValueError
+        Edges that cannot be constrained as asked, or quads on the outer
+        side of a constrained edge's line (see above).
+
+    Examples
+    --------
     >>> f = LocalDeformation([[0, 0], [2, 0], [2, 1], [0, 1]],
     ...                      [[0, 0], [2, 0], [2.2, 1.1], [0, 1]], edges=(3, 1))
     >>> np.round(f([[-5.0, 0.5], [9.0, 0.5]]), 9).tolist()   # identity left, far edge's similarity right

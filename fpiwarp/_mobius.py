@@ -27,6 +27,22 @@ class Mobius(Transform):
     ``Mobius(a, b, c, d)`` is z -> (a z + b) / (c z + d) with ad - bc != 0.
     ``Mobius.centered(q, s, alpha, beta)`` builds it from the centered form.
 
+    Parameters
+    ----------
+    a, b, c, d : complex
+        The coefficients, with ``ad - bc != 0``. A point (x, y) is the
+        complex number x + iy.
+    center : complex, optional
+        A point near where the map is used, about which it is stored
+        (keeps the float32 parameter block well conditioned).
+
+    Raises
+    ------
+    ArgumentError
+        ``ad - bc == 0``, or coefficients that are not finite numbers.
+
+    Examples
+    --------
     >>> m = Mobius(1, 0, 0, 2)          # z / 2
     >>> m([[2.0, 4.0]]).tolist()
     [[1.0, 2.0]]

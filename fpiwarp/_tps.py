@@ -54,7 +54,7 @@ def _kernel_terms(p, centers):
 
 
 class ThinPlateSpline(Transform):
-    """phi(p) = sum_j b_j U(|p - c_j|) + l1 p + l2 conj(p) + l3, U(r) = r² log r.
+    """``phi(p) = sum_j b_j U(|p - c_j|) + l1 p + l2 conj(p) + l3``, ``U(r) = r² log r``.
 
     Build it with :meth:`fit` from centers and targets (complex or (J, 2)),
     or directly from ``centers``, ``weights`` and the R-linear part

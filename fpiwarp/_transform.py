@@ -96,6 +96,27 @@ class Transform(abc.ABC):
     alone are cheaper), ``inverse`` and ``stages``. The built-in maps
     implement the first two under the names ``_wirtinger`` and ``_map``,
     which the public methods forward to.
+
+    Points are ``(x, y)`` in arrays of shape (..., 2) (x = column, y = row
+    in images); every method keeps the leading shape.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> f = fpiwarp.FPI([[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [2, 0], [2, 1], [0, 1]])
+    >>> p = np.array([[0.25, 0.5]])
+    >>> f(p).round(9).tolist(), f.inverse(f(p)).round(9).tolist()
+    ([[0.5, 0.5]], [[0.25, 0.5]])
+    >>> (f.jacobian(p).round(9) + 0.0).tolist()          # J[i, j] = d f_i / d x_j
+    [[[2.0, 0.0], [0.0, 1.0]]]
+    >>> f.distortion(p).round(9).tolist()
+    [2.0]
+    >>> g = fpiwarp.RLinear(1, 0, 10)                    # x -> x + 10
+    >>> (g @ f)(p).round(9).tolist()                     # g after f
+    [[10.5, 0.5]]
+    >>> f.params().dtype.name, f.params().shape[1]       # the block kernels read
+    ('float32', 4)
     """
 
     def __call__(self, points: ArrayLike) -> np.ndarray:
@@ -146,7 +167,7 @@ class Transform(abc.ABC):
         return distortion_from_wirtinger(fz, fzb)
 
     def dilation_at(self, points: ArrayLike) -> np.ndarray:
-        """Pointwise conformal dilation |f_zbar| / |f_z| = (K - 1) / (K + 1)."""
+        """Pointwise conformal dilation ``|f_zbar| / |f_z| = (K - 1) / (K + 1)``."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             _, fz, fzb = self.wirtinger(as_complex(points))
             return np.abs(fzb) / np.abs(fz)
@@ -163,6 +184,27 @@ class Compound(Transform):
     Nested compounds are flattened; Möbius and R-linear neighbours are
     fused into one map where the algebra allows (a Möbius after a Möbius
     is one Möbius), so kernels evaluate as few stages as possible.
+
+    Parameters
+    ----------
+    steps : sequence of Transform
+        The maps, in the order they are applied. ``g @ f`` is
+        ``Compound([f, g])``.
+
+    Raises
+    ------
+    ArgumentTypeError
+        A step that is not a Transform.
+
+    Examples
+    --------
+    >>> import fpiwarp
+    >>> f = fpiwarp.FPI([[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 0], [1, 0], [1.2, 1], [0, 1]])
+    >>> g = fpiwarp.LocalDeformation([[0, 0], [1, 0], [1, 1], [0, 1]],
+    ...                              [[0, 0], [1, 0], [1, 1.1], [0, 1]], edges=(3, 1))
+    >>> h = fpiwarp.Compound([f, g])
+    >>> bool((h([[0.5, 0.5]]) == g(f([[0.5, 0.5]]))).all()), len(h.steps)
+    (True, 2)
     """
 
     def __init__(self, steps: Sequence[Transform]):

@@ -10,9 +10,48 @@ from .validation import check_map_size, check_point_count, check_points, check_t
 
 
 def map_points(transform, points, backend="numpy"):
-    """Map (..., 2) points through ``transform`` on a backend (per vertex).
+    """Map points through ``transform`` on a backend, one point per vertex.
 
-    Returns float64 (..., 2). Points sent to the pole come out non-finite.
+    The same as ``transform(points)``, computed by the chosen backend: the
+    float64 host reference (``"numpy"``) or a device kernel (float32
+    evaluation of the same parameter block).
+
+    Parameters
+    ----------
+    transform : Transform
+        Any fpiwarp map (:class:`~fpiwarp.FPI`, :class:`~fpiwarp.Compound`, ...).
+    points : array_like, shape (..., 2)
+        ``(x, y)`` points; in image coordinates x = column, y = row, pixel
+        centers at integers. Any leading shape; converted to float64.
+    backend : str, optional
+        A name from :func:`fpiwarp.backend_status`; default ``"numpy"``.
+
+    Returns
+    -------
+    ndarray, float64, shape (..., 2)
+        The mapped points. Points sent to the pole come out non-finite.
+
+    Raises
+    ------
+    ArgumentError
+        ``points`` not of shape (..., 2), or an unknown backend name.
+    ArgumentTypeError
+        ``transform`` is not an fpiwarp map.
+    SizeLimitError
+        More points, or a map of more stages, than the backend takes.
+    BackendUnavailableError
+        The backend cannot run here (the message names what to install).
+
+    See Also
+    --------
+    warp_image : warp an image by the same map.
+
+    Examples
+    --------
+    >>> import fpiwarp
+    >>> f = fpiwarp.FPI([[0, 0], [3, 0], [3, 2], [0, 2]], [[0, 0], [6, 0], [6, 4], [0, 4]])
+    >>> fpiwarp.map_points(f, [[1.5, 1.0], [3, 2]]).round(9).tolist()
+    [[3.0, 2.0], [6.0, 4.0]]
     """
     check_transform(transform)
     pts = check_points(points)
@@ -28,28 +67,74 @@ def warp_image(image, transform, output_shape=None, *, order=1, mode="constant",
 
     Each output pixel samples the source at ``transform.inverse`` of its
     position (backward warping; exact for the FPI). Pixel centers are at
-    integer coordinates, x = column, y = row.
+    integer coordinates, x = column, y = row: pixel ``image[r, c]`` is the
+    point ``(c, r)``.
 
     Parameters
     ----------
-    image : ndarray, uint8, uint16 or float32, (H, W) or (H, W, C), C in 1..4
-    transform : an fpiwarp map (FPI, Mobius, RLinear, Compound, ...)
-    output_shape : (rows, cols), default the input's
-    order : 0 (nearest), 1 (bilinear) or 3 (cubic convolution); integral
-        floats such as 1.0 are taken as those integers
-    mode : 'constant', 'edge', 'reflect' or 'wrap'
-    cval : value (or one per channel) outside the image in 'constant' mode,
-        and wherever the source position is not finite (near the pole);
+    image : ndarray, uint8, uint16 or float32, shape (H, W) or (H, W, C)
+        The source, with C from 1 to 4 channels.
+    transform : Transform
+        An fpiwarp map (FPI, Mobius, RLinear, Compound, ...) from source to
+        output coordinates.
+    output_shape : tuple of int (rows, cols), optional
+        Default the input's.
+    order : {0, 1, 3}, optional
+        0 (nearest), 1 (bilinear, the default) or 3 (Keys' cubic
+        convolution); integral floats such as 1.0 are taken as those
+        integers.
+    mode : {'constant', 'edge', 'reflect', 'wrap'}, optional
+        What taps outside the source read: ``cval``, the nearest edge pixel,
+        the mirror image without repeating the edge (``numpy.pad``'s
+        'reflect') or the image tiled.
+    cval : float or sequence of float, optional
+        Value (or one per channel) outside the image in 'constant' mode,
+        and wherever the source position is not finite or lies more than
+        2**24 px away (at or next to the pole's image), in every mode;
         finite; clamped to the range of uint8/uint16 images, within ±1e38
-        for float32 images
-    backend : name from :func:`fpiwarp.backends.backend_status`
-    backend_options : dict of options the backend declares (see
-        :func:`fpiwarp.backends.backend_capabilities`), e.g.
-        ``{"hardware_filter": True}`` on "gl"
+        for float32 images.
+    backend : str, optional
+        A name from :func:`fpiwarp.backend_status`; default ``"numpy"``.
+    backend_options : dict, optional
+        Options the backend declares (see
+        :func:`fpiwarp.backend_capabilities`), e.g.
+        ``{"hardware_filter": True}`` on "gl".
 
-    Returns an array of the input's dtype and channel layout. Sizes beyond
-    a limit (2**31 - 1 values per call, the backend's pixels per side, this
-    machine's memory) raise :class:`~fpiwarp.SizeLimitError` before any work.
+    Returns
+    -------
+    ndarray
+        Shape ``output_shape`` (plus the channel axis if the input has one),
+        of the input's dtype; integer outputs are rounded.
+
+    Raises
+    ------
+    ArgumentError
+        A bad image, shape, order, mode, cval or option (a ValueError).
+    ArgumentTypeError
+        ``transform`` is not an fpiwarp map (a TypeError).
+    SizeLimitError
+        Sizes beyond a limit (2**31 - 1 values per call, the backend's
+        pixels per side, this machine's memory), before any work.
+    BackendUnavailableError
+        The backend cannot run here.
+
+    See Also
+    --------
+    source_positions : the source position of every output pixel, for
+        another resampler.
+    warp_images, warp_batch : many images by one map.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> img = np.arange(12, dtype=np.uint8).reshape(3, 4)
+    >>> shift = fpiwarp.RLinear(1, 0, 1)            # x -> x + 1: content moves right
+    >>> fpiwarp.warp_image(img, shift, order=0, cval=99).tolist()
+    [[99, 0, 1, 2], [99, 4, 5, 6], [99, 8, 9, 10]]
+    >>> f = fpiwarp.FPI([[0, 0], [3, 0], [3, 2], [0, 2]], [[0, 0], [3, 0], [3.3, 2], [0, 2]])
+    >>> fpiwarp.warp_image(img, f, output_shape=(4, 5)).shape
+    (4, 5)
     """
     caps = backend_capabilities(backend)
     args = check_warp_arguments(image, transform, output_shape, order, mode, cval, caps, backend, backend_options)

@@ -38,11 +38,48 @@ def _as_image(item):
 
 def warp_images(images, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
                 backend_options=None):
-    """Warp each of ``images`` (arrays, or paths of image files) by
-    ``transform``; yield the warped arrays in order, one at a time.
+    """Warp each of ``images`` by ``transform``; yield the warped arrays in
+    order, one at a time (bounded memory).
 
-    Options as in :func:`fpiwarp.warp_image`; they are checked before the
-    first image is read. Same-size images share the map's evaluation.
+    The map is solved and bound to the backend once; images of the same
+    size share its evaluation (on "numpy", the source positions).
+
+    Parameters
+    ----------
+    images : iterable of ndarray or path-like
+        Arrays as :func:`fpiwarp.warp_image` takes them, or paths of image
+        files (read with :func:`fpiwarp.read_image`, one at a time).
+    transform : Transform
+        The map, from source to output coordinates (x = column, y = row).
+    output_shape, order, mode, cval, backend, backend_options
+        As in :func:`fpiwarp.warp_image`; checked before the first image
+        is read.
+
+    Yields
+    ------
+    ndarray
+        Each warped image, of its input's dtype and channels.
+
+    Raises
+    ------
+    ArgumentError, ArgumentTypeError, BackendUnavailableError
+        For bad options, when the generator is created.
+    ImageError, FileNotFoundError
+        For a path that cannot be read, when that image's turn comes.
+
+    See Also
+    --------
+    warp_batch : a stack in one call.
+    fpiwarp.batch_folders.run_batch : a folder of files into another.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> shift = fpiwarp.RLinear(1, 0, 1j)                 # y -> y + 1: content moves down
+    >>> frames = [np.full((2, 3), v, np.uint8) for v in (10, 20)]
+    >>> [out.tolist() for out in fpiwarp.warp_images(frames, shift, order=0)]
+    [[[0, 0, 0], [10, 10, 10]], [[0, 0, 0], [20, 20, 20]]]
     """
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
                     backend_options=backend_options)
@@ -50,12 +87,39 @@ def warp_images(images, transform, output_shape=None, *, order=1, mode="constant
 
 
 def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy"):
-    """Warp a stack of same-size images, (N, H, W) or (N, H, W, C).
+    """Warp a stack of same-size images, with one map for all or one each.
 
-    ``transforms`` is one map for all images or a sequence of N maps, one
-    per image. Returns an (N, rows, cols[, C]) array of the input's dtype.
-    On a backend that batches (numpy: one map is evaluated once and all N
-    images sampled in one pass) the stack goes in one call.
+    Parameters
+    ----------
+    images : array_like, shape (N, H, W) or (N, H, W, C)
+        N images of one size, uint8, uint16 or float32.
+    transforms : Transform or sequence of Transform
+        One map for all images, or N maps, one per image (source to output
+        coordinates, x = column, y = row).
+    output_shape, order, mode, cval, backend
+        As in :func:`fpiwarp.warp_image`.
+
+    Returns
+    -------
+    ndarray, shape (N, rows, cols) or (N, rows, cols, C)
+        The warped stack, of the input's dtype. On a backend that batches
+        (numpy: one map is evaluated once and all N images sampled in one
+        pass) the stack goes in one call.
+
+    Raises
+    ------
+    ArgumentError
+        An empty stack, a shape other than 3-D or 4-D, or a number of maps
+        other than 1 or N; and as :func:`fpiwarp.warp_image`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> stack = np.zeros((3, 4, 5, 3), np.float32)
+    >>> maps = [fpiwarp.RLinear(1, 0, k) for k in range(3)]   # one shift per image
+    >>> fpiwarp.warp_batch(stack, maps).shape
+    (3, 4, 5, 3)
     """
     stack = np.asarray(images) if not isinstance(images, np.ndarray) else images
     if stack.ndim not in (3, 4) or stack.shape[0] == 0:

@@ -170,18 +170,67 @@ def run_batch(
 ):
     """Warp every image file of ``input_dir`` into ``output_dir``.
 
-    Outputs keep the input's relative path, name, format, dtype, channels
-    and metadata. Existing outputs are kept (and counted as skipped) unless
-    ``overwrite``. Files that cannot be read or written are recorded as
-    failed and the others processed. ``jobs`` threads work in parallel
-    with at most a few images in memory per thread; ``scheduler`` (a Dask
-    scheduler address or a ``distributed.Client``) runs the files on a Dask
-    cluster instead, whose workers must see both folders at the same paths.
-    ``progress(summary)`` is called after each file. Returns the
-    :class:`BatchSummary` (or fills ``summary``); on KeyboardInterrupt the
-    files in progress are finished or cleaned up, the summary is marked
-    interrupted and the interrupt re-raised. ``orientation`` is passed to
-    :func:`fpiwarp.read_image` ("apply": warp each photo as viewers show it).
+    The command line's ``fpiwarp batch SPEC INPUT_DIR OUTPUT_DIR``. Outputs
+    keep the input's relative path, name, format, dtype, channels and
+    metadata, and are written atomically; inputs are never modified.
+
+    Parameters
+    ----------
+    transform : Transform
+        One map for every file (source to output coordinates, x = column,
+        y = row).
+    input_dir, output_dir : str or path-like
+        The folders; ``output_dir`` is created if needed.
+    pattern : str, optional
+        A glob pattern the files must match (default: every file).
+    jobs : int, optional
+        Threads working in parallel, with at most a few images in memory
+        per thread (backends that are not thread safe run in this thread).
+    overwrite : bool, optional
+        Redo existing outputs; by default they are kept and counted as
+        skipped, so a rerun resumes.
+    backend, order, mode, cval, output_shape, backend_options
+        As in :func:`fpiwarp.warp_image`.
+    progress : callable, optional
+        ``progress(summary)`` is called after each file.
+    scheduler : str or distributed.Client, optional
+        Run the files on a Dask cluster (``pip install 'fpiwarp[dask]'``)
+        whose workers see both folders at the same paths.
+    summary : BatchSummary, optional
+        Filled in place instead of a new one.
+    orientation : {"apply", "stored"}, optional
+        The EXIF orientation rule of :func:`fpiwarp.read_image`: "apply"
+        (default) warps each photo as viewers show it.
+
+    Returns
+    -------
+    BatchSummary
+        What was written, skipped and failed. Files that cannot be read or
+        written are recorded as failed and the others processed.
+
+    Raises
+    ------
+    ArgumentError
+        ``jobs`` below 1, and bad warp options (before any file is read).
+    KeyboardInterrupt
+        Re-raised after the files in progress are finished or cleaned up;
+        the summary is marked interrupted.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> from fpiwarp.batch_folders import run_batch
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> (root / "in").mkdir()
+    >>> for name in ("a.png", "b.png"):
+    ...     fpiwarp.write_image(root / "in" / name, np.zeros((8, 8), np.uint8))
+    >>> f = fpiwarp.FPI([[0, 0], [7, 0], [7, 7], [0, 7]], [[1, 0], [7, 1], [6, 7], [0, 6]])
+    >>> run_batch(f, root / "in", root / "out").report()[0]
+    '2 warped, 0 skipped (output exists), 0 failed, of 2 files'
+    >>> run_batch(f, root / "in", root / "out").report()[0]        # a rerun skips them
+    '0 warped, 2 skipped (output exists), 0 failed, of 2 files'
     """
     if int(jobs) < 1:
         raise ArgumentError(f"jobs must be at least 1, got {jobs}")

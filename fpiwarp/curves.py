@@ -21,14 +21,32 @@ def curve_map(anchors):
 
 
 def fpi_curve(anchors, n=256):
-    """Closed curve through four anchor points, shape (n, 2), not repeating the start.
+    """The closed FPI curve through four anchor points (paper Fig. 6).
 
-    The anchors must form a simple quad (in the order the curve visits
-    them); point ``k * n // 4`` is anchor ``k`` when ``n`` is a multiple of
-    4. Raises DegenerateQuadError for invalid anchors and ValueError when
-    the FPI's pole lies on the circle (the curve would pass through
-    infinity).
+    Parameters
+    ----------
+    anchors : array_like, shape (4, 2)
+        Four ``(x, y)`` points forming a simple quad, in the order the
+        curve visits them.
+    n : int, optional
+        Points on the curve, at least 4 (default 256).
 
+    Returns
+    -------
+    ndarray, float64, shape (n, 2)
+        The curve, not repeating its start; point ``k * n // 4`` is anchor
+        ``k`` when ``n`` is a multiple of 4.
+
+    Raises
+    ------
+    DegenerateQuadError
+        Invalid anchors.
+    ValueError
+        ``n < 4``, or the FPI's pole lies on the circle (the curve would
+        pass through infinity).
+
+    Examples
+    --------
     >>> c = fpi_curve([[0, 0], [2, 0], [2, 1], [0, 1]], n=8)
     >>> np.round(c[::2], 12).tolist()
     [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]]

@@ -70,17 +70,50 @@ __all__ = [
 def read_image(
     path: str | os.PathLike, *, orientation: str = "apply", max_pixels: int = MAX_PIXELS
 ) -> tuple[np.ndarray, ImageInfo]:
-    """Read an image file; return (array, ImageInfo).
+    """Read an image file; return ``(array, info)``.
 
-    ``orientation="apply"`` (the default) turns the pixels as the EXIF
-    Orientation tag says, as viewers and OpenCV show them, and removes the
-    tag from the returned metadata; ``"stored"`` returns the pixels as
-    stored and keeps the tag (``info.orientation`` then says what a viewer
-    would do). An image of more than ``max_pixels`` pixels (default
-    :data:`MAX_PIXELS`, Pillow's limit) is refused from its header, before
-    decoding. Raises FileNotFoundError for a missing file and ImageError
-    for a file that is not an image, is corrupt, is too large, or cannot
-    be read without loss.
+    8- and 16-bit PNG is decoded by fpiwarp itself; the other formats by
+    Pillow (a dependency); TIFFs Pillow cannot read (16-bit colour or
+    gray+alpha) need tifffile: ``pip install 'fpiwarp[io]'``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file. Its content, not its extension, says the format.
+    orientation : {"apply", "stored"}, optional
+        "apply" (the default) turns the pixels as the EXIF Orientation tag
+        says, as viewers and OpenCV show them, and removes the tag from the
+        returned metadata; "stored" returns the pixels as stored and keeps
+        the tag (``info.orientation`` then says what a viewer would do).
+    max_pixels : int, optional
+        An image of more pixels is refused from its header, before
+        decoding; default ``fpiwarp.io.MAX_PIXELS``, Pillow's limit.
+
+    Returns
+    -------
+    array : ndarray
+        (H, W) or (H, W, C), uint8, uint16 or float32, row 0 at the top,
+        channels in RGB(A) order.
+    info : ImageInfo
+        How the file stored it (mode, metadata), for
+        :func:`write_image` to store the warped copy alike.
+
+    Raises
+    ------
+    FileNotFoundError
+        A missing file.
+    ImageError
+        A folder, a file that is not an image, is corrupt, is too large,
+        or cannot be read without loss.
+
+    Examples
+    --------
+    >>> from importlib import resources
+    >>> import fpiwarp
+    >>> with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
+    ...     image, info = fpiwarp.read_image(path)
+    >>> image.shape, image.dtype.name, info.mode
+    ((480, 640, 3), 'uint8', 'RGB')
     """
     check_choice(orientation)
     path = Path(path)
@@ -99,11 +132,43 @@ def read_image(
 
 
 def write_image(path: str | os.PathLike, array, info: ImageInfo | None = None, *, overwrite: bool = False) -> None:
-    """Write ``array`` to ``path`` atomically, in the format its extension
-    names, with the metadata of ``info`` (from :func:`read_image`) where the
-    format allows. Raises ImageError when the format cannot store the
-    array, OutputExistsError when ``path`` exists and not ``overwrite``,
-    OutputIsFolderError when it is a folder."""
+    """Write ``array`` to ``path`` atomically, in the format its extension names.
+
+    The file is written to a temporary name in the same folder and renamed,
+    so a crash never leaves a partial file under ``path``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The output file; its extension (.png, .jpg, .tif, ...) chooses the
+        format.
+    array : array_like
+        (H, W) or (H, W, C), uint8, uint16 or float32, RGB(A) order.
+    info : ImageInfo, optional
+        From :func:`~fpiwarp.read_image`: the metadata (ICC profile, EXIF, PNG
+        chunks) and mode to keep where the format allows.
+    overwrite : bool, optional
+        Replace an existing file; default False.
+
+    Raises
+    ------
+    ImageError
+        The format cannot store the array (e.g. 16-bit colour as JPEG).
+    OutputExistsError
+        ``path`` exists and not ``overwrite``.
+    OutputIsFolderError
+        ``path`` is a folder.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "ramp.png"
+    >>> fpiwarp.write_image(path, np.arange(6, dtype=np.uint16).reshape(2, 3))
+    >>> fpiwarp.read_image(path)[0].tolist()
+    [[0, 1, 2], [3, 4, 5]]
+    """
     array = np.asarray(array)
     dtype, channels = layout(array, path)
     fmt = check_writable(path, dtype, channels, info)

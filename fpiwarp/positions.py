@@ -49,10 +49,47 @@ def iter_source_positions(transform, output_shape, chunk_pixels=CHUNK_PIXELS):
 
 
 def source_positions(transform: Transform, output_shape: tuple[int, int]) -> np.ndarray:
-    """float64 (rows, cols, 2): the source (x, y) that each pixel of an
-    output of ``output_shape`` = (rows, cols) samples when ``transform``
-    (source -> output) warps an image; see the module docstring for the
-    layout and for cv2.remap / scipy.ndimage.map_coordinates."""
+    """The source position that each output pixel samples: the backward map.
+
+    Parameters
+    ----------
+    transform : Transform
+        The map from source to output coordinates, as
+        :func:`fpiwarp.warp_image` takes it.
+    output_shape : tuple of int (rows, cols)
+        The size of the output.
+
+    Returns
+    -------
+    ndarray, float64, shape (rows, cols, 2)
+        ``out[r, c]`` is the source ``(x, y)`` = (column, row) that output
+        pixel ``(r, c)`` samples, ``transform.inverse((c, r))``, pixel
+        centers at integers. Pixels a numerical inverse cannot solve, and
+        pixels at the pole, are NaN or inf: treat them as outside.
+
+    Raises
+    ------
+    ArgumentError
+        A bad ``output_shape``.
+    SizeLimitError
+        An output too large for this machine's memory.
+
+    Notes
+    -----
+    Other resamplers take it directly: ``cv2.remap(image,
+    pos[..., 0].astype(np.float32), pos[..., 1].astype(np.float32), ...)``;
+    ``scipy.ndimage.map_coordinates(channel, [pos[..., 1], pos[..., 0]])``
+    (row first).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> shift = fpiwarp.RLinear(1, 0, 1 + 2j)             # moves content by (1, 2)
+    >>> pos = fpiwarp.source_positions(shift, (2, 3))
+    >>> (pos[1, 2].round(9) + 0.0).tolist()               # output pixel row 1, column 2
+    [1.0, -1.0]
+    """
     check_transform(transform)
     rows, cols = check_output_shape(output_shape, None)
     check_sizes((1, 1, 2), (rows, cols), np.float64, NUMPY, "numpy")

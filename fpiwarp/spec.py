@@ -258,7 +258,48 @@ def parse_spec(text: str, name: str = "spec") -> Transform:
 
 
 def load_spec(path: str | os.PathLike) -> Transform:
-    """The transform of the JSON spec file at ``path``."""
+    """The map that the JSON spec file at ``path`` describes.
+
+    A spec is ``{"src": quad, "dst": quad}`` (an FPI), the same with
+    ``"edges": [i, j]`` (a local deformation) or ``{"steps": [spec, ...]}``
+    (a compound, applied in order); quads are four ``[x, y]`` points in
+    pixels, x = column, y = row. The schema is ``fpiwarp/data/spec.schema.json``
+    (:func:`schema`); the command line's ``--spec`` reads the same files.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A UTF-8 JSON file.
+
+    Returns
+    -------
+    Transform
+        An :class:`~fpiwarp.FPI`, :class:`~fpiwarp.LocalDeformation` or
+        :class:`~fpiwarp.Compound`.
+
+    Raises
+    ------
+    SpecError
+        Not JSON, or not a valid spec; the message names the file and the
+        place in it.
+    FileNotFoundError
+        A missing file.
+
+    See Also
+    --------
+    save_spec, parse_spec, to_spec
+
+    Examples
+    --------
+    >>> import json, tempfile, pathlib
+    >>> import fpiwarp
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "warp.json"
+    >>> _ = path.write_text(json.dumps({"src": [[0, 0], [9, 0], [9, 9], [0, 9]],
+    ...                                 "dst": [[1, 0], [9, 1], [8, 9], [0, 8]]}))
+    >>> f = fpiwarp.load_spec(path)
+    >>> type(f).__name__, f([[9, 9]]).round(9).tolist()
+    ('FPI', [[8.0, 9.0]])
+    """
     with open(path, encoding="utf-8") as f:
         try:
             text = f.read()
@@ -284,7 +325,35 @@ def to_spec(transform: Transform) -> dict:
 
 
 def save_spec(transform: Transform, path: str | os.PathLike, *, overwrite: bool = False) -> None:
-    """Write ``transform`` as a JSON spec file, atomically."""
+    """Write ``transform`` as a JSON spec file, atomically.
+
+    Parameters
+    ----------
+    transform : FPI, LocalDeformation or Compound
+        A map a spec can describe (see :func:`to_spec`).
+    path : str or path-like
+        The file to write.
+    overwrite : bool, optional
+        Replace an existing file; default False.
+
+    Raises
+    ------
+    TypeError
+        A map a spec cannot describe.
+    OutputExistsError
+        ``path`` exists and not ``overwrite``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import fpiwarp
+    >>> from fpiwarp.spec import save_spec
+    >>> f = fpiwarp.FPI([[0, 0], [9, 0], [9, 9], [0, 9]], [[1, 0], [9, 1], [8, 9], [0, 8]])
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "warp.json"
+    >>> save_spec(f, path)
+    >>> fpiwarp.load_spec(path).dst.tolist() == f.dst.tolist()
+    True
+    """
     from .io import atomic_write
 
     text = json.dumps(to_spec(transform), indent=2) + "\n"

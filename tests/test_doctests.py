@@ -1,15 +1,35 @@
-"""The examples in the docstrings run and say what they show."""
+"""The examples in the docstrings run and say what they show.
+
+Modules whose examples draw with OpenGL run where the "gl" backend can
+(skipped otherwise, failed when FPIWARP_REQUIRE_BACKENDS lists it).
+"""
 
 import doctest
 import importlib
 
 import pytest
+from conftest import use_backend
 
-MODULES = ["_fpi", "_linear", "_mobius", "_tps", "_constrained", "_local", "curves", "metrics", "spec"]
+MODULES = [
+    "_fpi", "_linear", "_mobius", "_tps", "_constrained", "_local", "_warp",
+    "_transform", "_errors", "batch", "batch_folders", "positions", "io", "backends",
+    "curves", "metrics", "spec",
+]
+GL_MODULES = ["viewer.offscreen", "viewer.renderer"]
+
+
+def run_examples(name):
+    module = importlib.import_module(f"fpiwarp.{name}")
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0
 
 
 @pytest.mark.parametrize("name", MODULES)
 def test_docstring_examples(name):
-    module = importlib.import_module(f"fpiwarp.{name}")
-    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
-    assert result.attempted > 0 and result.failed == 0
+    run_examples(name)
+
+
+@pytest.mark.parametrize("name", GL_MODULES)
+def test_docstring_examples_that_draw(name):
+    use_backend("gl")
+    run_examples(name)

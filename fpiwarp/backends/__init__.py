@@ -67,7 +67,26 @@ def _probe(name):
 
 
 def backend_status() -> dict[str, str | None]:
-    """{name: None if available else the reason why not}, for every backend."""
+    """Which backends can run here, and why the others cannot.
+
+    Each backend is imported and probed once (a driver that fails to load
+    is reported, not raised); later calls return the cached answer.
+
+    Returns
+    -------
+    dict of str to (str or None)
+        For every backend name ("numpy", "opencl", "warp", "gl"): None if
+        it can run, else a one-line reason.
+
+    Examples
+    --------
+    >>> import fpiwarp
+    >>> status = fpiwarp.backend_status()
+    >>> sorted(status)
+    ['gl', 'numpy', 'opencl', 'warp']
+    >>> status["numpy"] is None                 # the reference always runs
+    True
+    """
     with _lock:
         for name in REGISTRY:
             if name not in _status:
@@ -76,7 +95,19 @@ def backend_status() -> dict[str, str | None]:
 
 
 def available_backends() -> list[str]:
-    """Names of the backends that can run here."""
+    """Names of the backends that can run here.
+
+    Returns
+    -------
+    list of str
+        In the registry's order; always includes "numpy".
+
+    Examples
+    --------
+    >>> import fpiwarp
+    >>> "numpy" in fpiwarp.available_backends()
+    True
+    """
     return [name for name, reason in backend_status().items() if reason is None]
 
 
@@ -88,15 +119,68 @@ def check_backend_name(name):
 
 
 def backend_capabilities(name: str) -> Capabilities:
-    """What backend ``name`` accepts: a :class:`~fpiwarp.backends.capabilities.Capabilities`
-    (dtypes, orders, modes, size limits, options, batching); known without
-    importing the backend."""
+    """What backend ``name`` accepts, known without importing it.
+
+    Parameters
+    ----------
+    name : str
+        A backend name.
+
+    Returns
+    -------
+    Capabilities
+        dtypes, orders, modes, size limits, the ``backend_options`` it
+        declares (:class:`~fpiwarp.backends.capabilities.BackendOption`),
+        whether it batches and whether it is thread safe.
+
+    Raises
+    ------
+    ArgumentError
+        An unknown name.
+
+    Examples
+    --------
+    >>> import fpiwarp
+    >>> caps = fpiwarp.backend_capabilities("gl")
+    >>> [opt.name for opt in caps.options]
+    ['hardware_filter']
+    >>> fpiwarp.backend_capabilities("numpy").batches
+    True
+    """
     return REGISTRY[check_backend_name(name)].capabilities
 
 
 def get_backend(name):
-    """The backend object for ``name``; raises BackendUnavailableError with
-    the reason and the extra to install when it cannot run here."""
+    """The backend object for ``name``, created once per process.
+
+    Parameters
+    ----------
+    name : str
+        A backend name.
+
+    Returns
+    -------
+    object
+        Follows :class:`fpiwarp.backends.protocol.Backend` (``map_points``,
+        ``warp_image``, and ``warp_batch`` where it batches), on arrays
+        already validated; most callers want :func:`fpiwarp.warp_image`
+        instead.
+
+    Raises
+    ------
+    ArgumentError
+        An unknown name.
+    BackendUnavailableError
+        It cannot run here; the message gives the reason and the extra to
+        install.
+
+    Examples
+    --------
+    >>> from fpiwarp.backends import get_backend
+    >>> backend = get_backend("numpy")
+    >>> backend is get_backend("numpy"), callable(backend.warp_image)
+    (True, True)
+    """
     check_backend_name(name)
     with _lock:
         if name not in _status:

@@ -40,10 +40,10 @@ is the reference every kernel mirrors line by line):
    returns a * z + b. Otherwise:
 2. pre-Möbius: u = z - q1; p = k1 * u / (1 - s1 * u)
 3. core (``CORE_AFFINE``): p = l1 p + l2 conj(p) + l3;
-   (``CORE_TPS``) p = sum_j b_j r² log r + l1 p + l2 conj(p) + l3, r = |p - c_j|;
+   (``CORE_TPS``) ``p = sum_j b_j r² log r + l1 p + l2 conj(p) + l3``, ``r = |p - c_j|``;
    (``CORE_TPS_INVERSE``) solve TPS(x) = p by Newton from
    x0 = mu1 p + mu2 conj(p) + mu3, at most newton_iters steps, stopping
-   once |TPS(x) - p| <= newton_tol; not converged: NaN (outside);
+   once ``|TPS(x) - p| <= newton_tol``; not converged: NaN (outside);
    any other core: the host refuses the block (:func:`describe` raises),
    and a kernel given one anyway returns NaN (outside).
 4. post-Möbius: w = q2 + k2 * p / (1 - s2 * p)

@@ -16,15 +16,56 @@ def render_image(image, transform, *, overlays=(), ctx=None, order=1, mode="cons
                  view=None, renderer_options=None):
     """Render one preview frame offscreen and read it back (top row first).
 
-    With no ``overlays`` and the default size and view, the frame is the
-    warped image at the source's size: the picture
-    :func:`fpiwarp.warp_image` makes, of the same dtype and channels (up
-    to the rounding of the display path: a level at most). With
-    ``overlays`` (names among "handles", "outline", "checkerboard",
-    "heatmap") the frame is RGB (RGBA for images with alpha) of the image's
-    dtype. ``ctx`` defaults to the "gl" backend's headless context (EGL),
-    the one context of the process: moderngl contexts in one thread would
-    otherwise take "current" from each other.
+    Parameters
+    ----------
+    image : ndarray, uint8, uint16 or float32, shape (H, W) or (H, W, C)
+        The source picture.
+    transform : Transform
+        The map from source to output coordinates (x = column, y = row).
+    overlays : sequence of str, optional
+        Names among "handles", "outline", "checkerboard", "heatmap" (the
+        :class:`~fpiwarp.gl.Renderer` attributes of those names).
+    ctx : moderngl.Context, optional
+        Default the "gl" backend's headless context (EGL), the one context
+        of the process: moderngl contexts in one thread would otherwise
+        take "current" from each other.
+    order, mode, cval
+        Sampling as in :func:`fpiwarp.warp_image`.
+    size : tuple of int (width, height), optional
+        The frame's size; default the source's.
+    view : tuple of float (x0, y0, x1, y1), optional
+        The output region shown; default the source's extent.
+    renderer_options : dict, optional
+        Renderer attributes to set (e.g. ``{"method": "mesh"}``).
+
+    Returns
+    -------
+    ndarray
+        With no ``overlays`` and the default size and view, the warped image
+        at the source's size: the picture :func:`fpiwarp.warp_image` makes,
+        of the same dtype and channels (up to the rounding of the display
+        path: a level at most). With ``overlays``, RGB (RGBA for images with
+        alpha) of the image's dtype.
+
+    Raises
+    ------
+    BackendUnavailableError
+        No ``ctx`` and the "gl" backend cannot run here.
+    ValueError
+        An unknown overlay name, or an image larger than one texture.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> from fpiwarp.viewer import render_image
+    >>> img = np.full((48, 64, 3), 200, np.uint8)
+    >>> f = fpiwarp.FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [60, -2], [66, 50], [-3, 44]])
+    >>> frame = render_image(img, f)
+    >>> frame.shape, int(np.abs(frame.astype(int) - fpiwarp.warp_image(img, f)).max()) <= 1
+    ((48, 64, 3), True)
+    >>> render_image(img, f, overlays=("outline", "handles")).shape
+    (48, 64, 3)
     """
     img, squeeze = check_image(image)
     warper = None

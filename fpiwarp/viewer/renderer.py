@@ -115,6 +115,40 @@ class Renderer:
         a thin-plate spline, so much faster for local deformations, and
         piecewise linear between grid points); "auto": "pixel" for maps of
         constant dilation (an FPI), "mesh" for the others.
+
+    Notes
+    -----
+    Overlays are switched on by attributes: ``handles``, ``outline``,
+    ``checkerboard``, ``heatmap`` (booleans), with ``checker_size``,
+    ``heat_max``, ``handle_radius``, ``line_width`` for their looks.
+    ``set_transform`` uploads values only: moving points compiles nothing.
+    Programs are compiled once per kind of map (:attr:`compile_count`).
+    In an application, call ``draw`` from the toolkit's paint callback
+    with the context current (see ``fpiwarp/examples/qt_embed.py`` and
+    ``mglw_embed.py``).
+
+    Examples
+    --------
+    Drawing into a framebuffer of the "gl" backend's headless context (an
+    application passes its own context):
+
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> from fpiwarp.backends import get_backend
+    >>> from fpiwarp.gl import Renderer
+    >>> ctx = get_backend("gl").warper.ctx
+    >>> renderer = Renderer(ctx)
+    >>> renderer.set_image(np.full((48, 64, 3), 255, np.uint8))
+    >>> renderer.set_transform(fpiwarp.FPI([[0, 0], [63, 0], [63, 47], [0, 47]],
+    ...                                    [[4, 3], [60, -2], [66, 50], [-3, 44]]))
+    >>> renderer.outline = True
+    >>> fbo = ctx.simple_framebuffer((64, 48))
+    >>> fbo.use()
+    >>> renderer.draw((0, 0, 64, 48))
+    >>> pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(48, 64, 3)
+    >>> bool(pixels.max() == 255)
+    True
+    >>> fbo.release(); renderer.release()
     """
 
     def __init__(self, ctx, *, order=1, mode="constant", cval=0.0, background=None, warper=None, method="pixel"):
@@ -263,8 +297,23 @@ class Renderer:
 
     # ---- drawing
     def draw(self, viewport=None, *, y_down=False):
-        """Draw into the bound framebuffer, inside ``viewport`` (x, y, w,
-        h; default the current framebuffer's)."""
+        """Draw into the bound framebuffer.
+
+        Parameters
+        ----------
+        viewport : tuple of int (x, y, w, h), optional
+            Where in the framebuffer; default the bound framebuffer's
+            viewport.
+        y_down : bool, optional
+            True when row 0 of the framebuffer is read as the top of the
+            picture (offscreen read-back); False (GL's convention) for
+            windows.
+
+        Raises
+        ------
+        RuntimeError
+            Before :meth:`set_image` and :meth:`set_transform`.
+        """
         if self.image is None or self.transform is None:
             raise RuntimeError("set_image and set_transform before draw")
         ctx = self.ctx
