@@ -130,23 +130,22 @@ FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, fw_c *dz, fw_c *dzb)
 /* Per point this is the reference exactly: a converged point keeps its x
  * (np.where(done, x, x - step)) and here stops evaluating the spline; the
  * last iterate is checked once more, like the reference's for-else. The
- * trip count stays uniform (work-items only skip the body): PoCL runs a
- * work-group's items in lock-step loops and mixes up items whose loops
- * exit at different counts. */
+ * exit is the loop condition, never a return from inside the loop: PoCL
+ * (5.x) treats a loop with a uniform condition as uniform and mixes up
+ * work-items that leave it early by a return (measured: wrong points in
+ * tests/test_backend_opencl.py's Newton test). */
 FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, int iters, float tol)
 {
     fw_c mu1 = fw_at(rows, FW_ROW_MU12, 0), mu2 = fw_at(rows, FW_ROW_MU12, 2), mu3 = fw_at(rows, FW_ROW_MU3, 0);
     fw_c x = fw_rlinear(target, mu1, mu2, mu3);
     fw_c dz, dzb;
     bool done = false;
-    for (int k = 0; k < iters; ++k) {
-        if (!done) {
-            fw_c res = fw_sub(fw_tps(x, rows, n, &dz, &dzb), target);
-            done = sqrt(fw_abs2(res)) <= tol;
-            float det = fw_abs2(dz) - fw_abs2(dzb);
-            fw_c step = fw_scale(fw_sub(fw_mul(fw_conj(dz), res), fw_mul(dzb, fw_conj(res))), 1.0f / det);
-            x = fw_select(done, x, fw_sub(x, step));
-        }
+    for (int k = 0; k < iters && !done; ++k) {
+        fw_c res = fw_sub(fw_tps(x, rows, n, &dz, &dzb), target);
+        done = sqrt(fw_abs2(res)) <= tol;
+        float det = fw_abs2(dz) - fw_abs2(dzb);
+        fw_c step = fw_scale(fw_sub(fw_mul(fw_conj(dz), res), fw_mul(dzb, fw_conj(res))), 1.0f / det);
+        x = fw_select(done, x, fw_sub(x, step));
     }
     if (!done) {
         fw_c res = fw_sub(fw_tps(x, rows, n, &dz, &dzb), target);
