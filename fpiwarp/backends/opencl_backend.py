@@ -45,6 +45,10 @@ _CTYPES = {np.dtype(np.uint8): "uchar", np.dtype(np.uint16): "ushort", np.dtype(
 #: devices, capped by the device's limit. On PoCL every work-group costs a
 #: fixed overhead, so CPUs get large groups; GPUs prefer small ones.
 LOCAL_X_CPU, LOCAL_X_OTHER = 1024, 128
+#: warp_image's groups are one row wide at most: a narrower output takes the
+#: smallest of these widths that covers a row (each a build of its own), so
+#: that a 64 px row does not run 960 padding work-items.
+NARROW_LOCAL_X = (64, 256)
 #: On CPUs warp_image samples 8 pixels per work-item in 8-lane vector types
 #: (AVX registers): PoCL does not vectorize the sampling across work-items.
 VECTOR_LANES_CPU = 8
@@ -305,7 +309,9 @@ class DeviceWarp:
         self.out = np.empty((oh, ow, c), dtype=image.dtype)
         self._cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self._sampling = sampling_options(image.dtype, c, order, mode)
-        self._sampling += (f"-DFW_LOCAL_X={be.local_x}", f"-DFW_VN={be.lanes}")
+        fits = [x for x in NARROW_LOCAL_X if ow <= x < be.local_x and x % be.lanes == 0]
+        self.local_x = fits[0] if fits else be.local_x
+        self._sampling += (f"-DFW_LOCAL_X={self.local_x}", f"-DFW_VN={be.lanes}")
         self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
         cl.enqueue_copy(be.queue, self._src, image)
         self._zero_copy = be.zero_copy and self.out.nbytes >= ZERO_COPY_MIN_BYTES
@@ -330,8 +336,8 @@ class DeviceWarp:
         """Enqueue the kernel over the output; returns without waiting."""
         be = self.backend
         oh, ow = self.output_shape
-        cols = -(-ow // be.local_x) * be.local_x
-        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, (cols, oh), (be.local_x, 1))
+        cols = -(-ow // self.local_x) * self.local_x
+        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, (cols, oh), (self.local_x, 1))
 
     def finish(self):
         """Wait until the launched kernels are done."""
