@@ -131,9 +131,10 @@ FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, fw_c *dz, fw_c *dzb)
  * (np.where(done, x, x - step)) and here stops evaluating the spline; the
  * last iterate is checked once more, like the reference's for-else. The
  * exit is the loop condition, never a return from inside the loop: PoCL
- * (5.x) treats a loop with a uniform condition as uniform and mixes up
- * work-items that leave it early by a return (measured: wrong points in
- * tests/test_backend_opencl.py's Newton test). */
+ * (3.1, measured) takes a loop whose condition is uniform for a uniform
+ * loop and mixes up work-items that leave it early by a return (wrong
+ * points in tests/test_backend_opencl.py's Newton test). Work-items past
+ * the end of a row (padding) redo the row's last pixel, Newton included. */
 FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, int iters, float tol)
 {
     fw_c mu1 = fw_at(rows, FW_ROW_MU12, 0), mu2 = fw_at(rows, FW_ROW_MU12, 2), mu3 = fw_at(rows, FW_ROW_MU3, 0);
