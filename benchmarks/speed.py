@@ -77,14 +77,21 @@ class Settings:
     max_repeats: int = 7
     max_call_s: float = 12.0  # skip an implementation predicted slower than this per call
     backends: list | None = None  # None: every available backend
+    local_sizes: list = field(default_factory=list)  # benchmarks.speed_extra
+    overhead_sizes: list = field(default_factory=list)
 
     @classmethod
     def quick(cls, backends=None):
-        return cls(QUICK_POINT_SIZES, QUICK_IMAGE_SIZES, budget_s=0.0, max_repeats=1, max_call_s=2.0, backends=backends)
+        from .speed_extra import OVERHEAD_SIZES, QUICK_LOCAL_SIZES
+
+        return cls(QUICK_POINT_SIZES, QUICK_IMAGE_SIZES, budget_s=0.0, max_repeats=1, max_call_s=2.0, backends=backends,
+                   local_sizes=QUICK_LOCAL_SIZES, overhead_sizes=OVERHEAD_SIZES[:1])
 
     @classmethod
     def full(cls, backends=None):
-        return cls(POINT_SIZES, IMAGE_SIZES, backends=backends)
+        from .speed_extra import LOCAL_SIZES, OVERHEAD_SIZES
+
+        return cls(POINT_SIZES, IMAGE_SIZES, backends=backends, local_sizes=LOCAL_SIZES, overhead_sizes=OVERHEAD_SIZES)
 
 
 def time_call(fn, budget_s, max_repeats, min_repeats=2, slow_s=4.0):
@@ -315,6 +322,11 @@ def run(settings, log=print):
             results.extend(rows.values())
             log(f"warp_image {dtype:7s} {label:>9s}: " + _brief(rows))
             del image, impls
+
+    from . import speed_extra
+
+    results += speed_extra.run_overhead(settings.overhead_sizes, settings, backends, rng, log)
+    results += speed_extra.run_local(settings.local_sizes, settings, backends, rng, log)
     return results
 
 
@@ -449,6 +461,9 @@ def markdown(results, settings, machine_md):
         ]
     for dtype in settings.dtypes:
         parts += ["", f"## warp_image, {dtype} RGB", "", table(results, "warp_image", dtype)]
+    from .speed_extra import markdown_parts
+
+    parts += markdown_parts(results)
     extra = notes(results)
     if extra:
         parts += ["", "## Notes", ""] + extra

@@ -90,6 +90,21 @@ FW_FN fw_c fw_rlinear(fw_c p, fw_c l1, fw_c l2, fw_c l3)
     return fw_add(fw_add(fw_mul(l1, p), fw_mul(l2, fw_conj(p))), l3);
 }
 
+/* log(v) for v > 0 finite, branch-free: v = 2^e m, m in [sqrt(1/2), sqrt(2)),
+ * log m = 2 atanh(s), s = (m - 1) / (m + 1), |s| < 0.172, series to s^9 */
+FW_FN float fw_log(float v)
+{
+    int bits = as_int(v);
+    int e = ((bits >> 23) & 255) - 127;
+    float m = as_float((bits & 0x007fffff) | 0x3f800000);
+    bool big = m > 1.41421356f;
+    m = big ? 0.5f * m : m;
+    e = big ? e + 1 : e;
+    float s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
+    float poly = 1.0f + s2 * (0.33333333f + s2 * (0.2f + s2 * (0.14285714f + s2 * 0.11111111f)));
+    return 2.0f * s * poly + (float)e * 0.69314718f;
+}
+
 /* ---- TPS core (reference.tps_core) ------------------------------------- */
 /* The TPS core at p, and its Wirtinger derivatives in *dz, *dzb. */
 FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, fw_c *dz, fw_c *dzb)
@@ -102,7 +117,7 @@ FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, fw_c *dz, fw_c *dzb)
         fw_c c = fw_at(rows, FW_ROW_CENTERS + j, 0), b = fw_at(rows, FW_ROW_CENTERS + j, 2);
         fw_c d = fw_sub(p, c);
         float r2 = fw_abs2(d);
-        float lg = r2 > 0.0f ? log(r2) : 0.0f;
+        float lg = r2 > 0.0f ? fw_log(r2) : 0.0f;
         val = fw_add(val, fw_scale(b, 0.5f * r2 * lg));
         fw_c g = fw_scale(b, 0.5f * (lg + 1.0f));
         *dz = fw_add(*dz, fw_mul(g, fw_conj(d)));
@@ -113,22 +128,30 @@ FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, fw_c *dz, fw_c *dzb)
 
 /* ---- Newton inverse of the TPS core (reference.newton) ----------------- */
 /* Per point this is the reference exactly: a converged point keeps its x
- * (np.where(done, x, x - step)), so checking once more after the last
- * step gives the same verdict as the reference's early exit. */
+ * (np.where(done, x, x - step)) and here stops evaluating the spline; the
+ * last iterate is checked once more, like the reference's for-else. The
+ * exit is the loop condition, never a return from inside the loop: PoCL
+ * (3.1, measured) takes a loop whose condition is uniform for a uniform
+ * loop and mixes up work-items that leave it early by a return (wrong
+ * points in tests/test_backend_opencl.py's Newton test). Work-items past
+ * the end of a row (padding) redo the row's last pixel, Newton included. */
 FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, int iters, float tol)
 {
     fw_c mu1 = fw_at(rows, FW_ROW_MU12, 0), mu2 = fw_at(rows, FW_ROW_MU12, 2), mu3 = fw_at(rows, FW_ROW_MU3, 0);
     fw_c x = fw_rlinear(target, mu1, mu2, mu3);
     fw_c dz, dzb;
-    for (int k = 0; k < iters; ++k) {
+    bool done = false;
+    for (int k = 0; k < iters && !done; ++k) {
         fw_c res = fw_sub(fw_tps(x, rows, n, &dz, &dzb), target);
-        bool done = sqrt(fw_abs2(res)) <= tol;
+        done = sqrt(fw_abs2(res)) <= tol;
         float det = fw_abs2(dz) - fw_abs2(dzb);
         fw_c step = fw_scale(fw_sub(fw_mul(fw_conj(dz), res), fw_mul(dzb, fw_conj(res))), 1.0f / det);
         x = fw_select(done, x, fw_sub(x, step));
     }
-    fw_c res = fw_sub(fw_tps(x, rows, n, &dz, &dzb), target);
-    bool done = sqrt(fw_abs2(res)) <= tol;
+    if (!done) {
+        fw_c res = fw_sub(fw_tps(x, rows, n, &dz, &dzb), target);
+        done = sqrt(fw_abs2(res)) <= tol;
+    }
     return fw_select(done, x, fw_cx(NAN, NAN));
 }
 
@@ -158,6 +181,10 @@ FW_FN fw_c fw_stage_kind(fw_rows_t rows, fw_c z, int core, int n, int n_regions,
         fw_region(rows, 0, z, &best, &outside);
     if (n_regions > 1)
         fw_region(rows, 1, z, &best, &outside);
+    /* a point in a region takes its similarity: the costly cores are
+     * skipped there (the affine core stays branch-free, so vectorized) */
+    if (n_regions > 0 && core != FW_CORE_AFFINE && best > 0.0f)
+        return outside;
     fw_c u = fw_sub(z, fw_at(rows, FW_ROW_PRE, 0));
     fw_c p = fw_div(fw_mul(fw_at(rows, FW_ROW_SCALE, 0), u), fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_PRE, 2), u)));
     if (core == FW_CORE_AFFINE) {

@@ -354,6 +354,40 @@ def test_programs_and_buffers_are_reused(backend, rng, sample_fpi):
     assert all(backend._buffers[k] is v for k, v in buffers.items())
 
 
+def test_unchanged_block_is_not_uploaded_again_and_a_changed_one_is(backend, rng, sample_fpi, monkeypatch):
+    """The block upload is skipped only for the very same block: maps
+    alternating in one kind each give their own result."""
+    image = test_image(rng, np.uint8, 3)
+    other = FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[1, 2], [62, 1], [64, 46], [-1, 45]])
+    kw = {"order": 1, "mode": "edge", "cval": np.zeros(3)}
+    maps = [sample_fpi, other]
+    first = [backend.warp_image(image, f, image.shape[:2], **kw).copy() for f in maps]
+    uploads = []
+    real_copy = backend._cl.enqueue_copy
+
+    def copy(queue, dst, src, **k):
+        uploads.append(src)
+        return real_copy(queue, dst, src, **k)
+
+    monkeypatch.setattr(backend._cl, "enqueue_copy", copy)
+    for i in (1, 1, 0, 0, 1):
+        np.testing.assert_array_equal(backend.warp_image(image, maps[i], image.shape[:2], **kw), first[i])
+    blocks = [u for u in uploads if isinstance(u, np.ndarray) and u.dtype == np.float32 and u.ndim == 2]
+    assert len(blocks) == 2  # other's block is kept from the last call; sample_fpi once, other once again
+
+
+def test_large_outputs_are_written_in_place_and_small_ones_copied(backend, rng, sample_fpi):
+    from fpiwarp.backends import opencl_backend as ocl
+
+    if not backend.zero_copy:
+        pytest.skip("the device does not share host memory")
+    for shape in [(48, 64), (600, 700)]:  # 9 KB and 1.26 MB of uint8 RGB output
+        image = test_image(rng, np.uint8, 3, shape=shape)
+        job = backend.prepare_warp(image, shape, order=1, mode="constant", cval=np.zeros(3))
+        assert job._zero_copy == (image.nbytes >= ocl.ZERO_COPY_MIN_BYTES)
+        assert_close_to_numpy(image, sample_fpi, order=1, mode="constant", cval=0)
+
+
 def test_device_choice(monkeypatch, opencl_backend):
     from fpiwarp.backends import opencl_backend as ocl
 

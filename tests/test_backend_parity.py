@@ -147,3 +147,26 @@ def test_warp_image_of_tps_regions_and_compounds(any_backend, name, order):
     img = make_image((48, 64, 3), np.uint8, seed=5)
     for mode in MODES:
         compare_warp(get_backend(any_backend), img, transform, (48, 64), order, mode, [10, 20, 30])
+
+
+def test_local_deformation_warp_and_inverse_points(any_backend):
+    """A LocalDeformation's image warp (Newton inverse inside, similarities in
+    the outer regions, the core skipped there) and its inverse's points:
+    within the device's Newton accuracy of the float64 reference, and each
+    result the same alone as among neighbours that converge at other steps."""
+    src = np.array([[30.0, 20.0], [66.0, 20.0], [66.0, 44.0], [30.0, 44.0]])
+    dst = src + [[3.0, -4.0], [2.0, 2.0], [-2.0, 3.0], [1.0, -2.0]]
+    local = fpiwarp.LocalDeformation(src, dst, edges=(1, 3))
+    img = kernel_cases.make_image((64, 96, 3), np.uint8)
+    want = fpiwarp.warp_image(img, local, backend="numpy")
+    got = fpiwarp.warp_image(img, local, backend=any_backend)
+    kernel_cases.assert_images_agree(got, want, np.uint8)
+    pts = np.random.default_rng(9).uniform([-10, -10], [106, 74], size=(700, 2))
+    inverse = local.inverse
+    want = evaluate(inverse.params(), pts, np.float64)
+    got = fpiwarp.map_points(inverse, pts, backend=any_backend)
+    scale = float(np.ptp(src, axis=0).max())
+    kernel_cases.assert_close_relative(got, want, rtol=0.0, atol=2e-4 * scale)
+    picks = range(0, 700, 97)
+    alone = np.concatenate([fpiwarp.map_points(inverse, pts[i : i + 1], backend=any_backend) for i in picks])
+    np.testing.assert_allclose(alone, got[::97], rtol=0, atol=1e-5 * scale)

@@ -45,12 +45,20 @@ _CTYPES = {np.dtype(np.uint8): "uchar", np.dtype(np.uint16): "ushort", np.dtype(
 #: devices, capped by the device's limit. On PoCL every work-group costs a
 #: fixed overhead, so CPUs get large groups; GPUs prefer small ones.
 LOCAL_X_CPU, LOCAL_X_OTHER = 1024, 128
+#: warp_image's groups are one row wide at most: a narrower output takes the
+#: smallest of these widths that covers a row (each a build of its own), so
+#: that a 64 px row does not run 960 padding work-items.
+NARROW_LOCAL_X = (64, 256)
 #: On CPUs warp_image samples 8 pixels per work-item in 8-lane vector types
 #: (AVX registers): PoCL does not vectorize the sampling across work-items.
 VECTOR_LANES_CPU = 8
 #: Bytes allocated past the source image: sampling reads a pixel of up to
 #: 4 bytes as one 32-bit word, which may run past the last pixel.
 IMAGE_SLACK = 4
+#: Outputs smaller than this are written to a kept device buffer and copied
+#: out: wrapping each new output array in a buffer (zero copy) costs about
+#: a millisecond of driver set-up per call on PoCL, more than the copy.
+ZERO_COPY_MIN_BYTES = 1 << 20
 
 
 def _import_cl():
@@ -183,6 +191,7 @@ class Backend:
         self.lanes = VECTOR_LANES_CPU if is_cpu and self.local_x % VECTOR_LANES_CPU == 0 else 1
         self._kernels = {}  # build options -> {kernel name: Kernel}
         self._buffers = {}  # (role, nbytes) -> Buffer
+        self._block_cache = None  # (block bytes, its buffer, kind options) of the last upload
         self._lock = threading.Lock()
 
     def __repr__(self):
@@ -216,9 +225,14 @@ class Backend:
         """Upload the block of ``transform``; return it and its kind options.
         A block no kernel knows raises ValueError before the upload."""
         block = np.ascontiguousarray(transform.params(), dtype=np.float32)
+        data = block.tobytes()
+        cached = self._block_cache
+        if cached is not None and cached[0] == data:  # unchanged: no upload
+            return cached[1], cached[2]
         options = kind_options(describe(block))
         buf = self._buffer("block", block.nbytes)
         self._cl.enqueue_copy(self.queue, buf, block)
+        self._block_cache = (data, buf, options)
         return buf, options
 
     # -- the backend interface ---------------------------------------------
@@ -249,11 +263,11 @@ class Backend:
             self._read_back(dst, out)
         return out.astype(np.float64, copy=False).reshape(shape)
 
-    def _read_back(self, dst, out):
+    def _read_back(self, dst, out, zero_copy=None):
         """Make the kernel's results visible in ``out`` and wait for them:
         on a zero-copy buffer (``out`` is its host memory) mapping does it,
         otherwise a copy."""
-        if self.zero_copy:
+        if self.zero_copy if zero_copy is None else zero_copy:
             mapped, event = self._cl.enqueue_map_buffer(
                 self.queue, dst, self._cl.map_flags.READ, 0, out.shape, out.dtype
             )
@@ -295,10 +309,13 @@ class DeviceWarp:
         self.out = np.empty((oh, ow, c), dtype=image.dtype)
         self._cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self._sampling = sampling_options(image.dtype, c, order, mode)
-        self._sampling += (f"-DFW_LOCAL_X={be.local_x}", f"-DFW_VN={be.lanes}")
+        fits = [x for x in NARROW_LOCAL_X if ow <= x < be.local_x and x % be.lanes == 0]
+        self.local_x = fits[0] if fits else be.local_x
+        self._sampling += (f"-DFW_LOCAL_X={self.local_x}", f"-DFW_VN={be.lanes}")
         self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
         cl.enqueue_copy(be.queue, self._src, image)
-        if be.zero_copy:  # the kernel writes `out` itself
+        self._zero_copy = be.zero_copy and self.out.nbytes >= ZERO_COPY_MIN_BYTES
+        if self._zero_copy:  # the kernel writes `out` itself
             mf = cl.mem_flags
             self._dst = cl.Buffer(be.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=self.out)
         else:
@@ -319,8 +336,8 @@ class DeviceWarp:
         """Enqueue the kernel over the output; returns without waiting."""
         be = self.backend
         oh, ow = self.output_shape
-        cols = -(-ow // be.local_x) * be.local_x
-        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, (cols, oh), (be.local_x, 1))
+        cols = -(-ow // self.local_x) * self.local_x
+        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, (cols, oh), (self.local_x, 1))
 
     def finish(self):
         """Wait until the launched kernels are done."""
@@ -328,5 +345,5 @@ class DeviceWarp:
 
     def read(self):
         """The output as a numpy array (waits for the kernel)."""
-        self.backend._read_back(self._dst, self.out)
+        self.backend._read_back(self._dst, self.out, self._zero_copy)
         return self.out

@@ -76,6 +76,18 @@ def evaluate_stage(rows, kind, z, dtype):
         win = depth > best
         best = np.where(win, depth, best)
         outside = np.where(win, a * z + b, outside)
+    if kind.core != CORE_AFFINE and kind.n_regions > 0:
+        # the kernels skip the costly cores where a region wins: so does the
+        # reference (per point the same numbers: every step is elementwise)
+        inner = ~(best > 0)
+        w = np.full(z.shape, np.nan + 0j, dtype=z.dtype)
+        w[inner] = _pre_core_post(rows, kind, z[inner], dtype)
+        return np.where(best > 0, outside, w)
+    return np.where(best > 0, outside, _pre_core_post(rows, kind, z, dtype))
+
+
+def _pre_core_post(rows, kind, z, dtype):
+    """Steps 2-4 of a stage (pre-Möbius, core, post-Möbius) on complex z."""
     u = z - _c(rows[ROW_PRE], 0)
     p = _c(rows[ROW_SCALE], 0) * u / (1 - _c(rows[ROW_PRE], 2) * u)
     if kind.core == CORE_AFFINE:
@@ -87,8 +99,7 @@ def evaluate_stage(rows, kind, z, dtype):
         p = newton(p, rows, kind.n_centers, kind.newton_iters, rows[ROW_L3, 2], dtype)
     else:  # describe() refuses unknown cores; kept explicit like every kernel
         raise ValueError(f"unknown core {kind.core}")
-    w = _c(rows[ROW_POST], 2) + _c(rows[ROW_SCALE], 2) * p / (1 - _c(rows[ROW_POST], 0) * p)
-    return np.where(best > 0, outside, w)
+    return _c(rows[ROW_POST], 2) + _c(rows[ROW_SCALE], 2) * p / (1 - _c(rows[ROW_POST], 0) * p)
 
 
 def newton(target, rows, n, iters, tol, dtype):
