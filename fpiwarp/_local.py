@@ -15,9 +15,13 @@ would follow the outer similarity: such input is refused.
 
 Consequences of that rule, stated once:
 
-- Across the constrained edges themselves the map is continuous (the
-  constrained FPI follows each edge's similarity there, to the accuracy
-  of the spline's interpolation, < 1% of the edge length).
+- Across the constrained edges themselves the map jumps by no more than
+  the constrained FPI strays from each edge's similarity along the edge:
+  with the defaults (16 adaptively spaced points per edge, δ = 0.002) at
+  most 8.1e-4 of the (output) edge length over 320 random fold-free
+  configurations, median 1.4e-4 (0.4 px at most on a 500-px edge;
+  benchmarks/seams.py); the paper's 10 equally spread points with
+  δ = 0.01 gave up to 2.0e-2.
 - Beyond the free edges there is no third region: the strip (or wedge)
   between the two lines, continued past the free edges, keeps the
   constrained FPI, with its pole if it has one there. Along the lines'
@@ -85,8 +89,10 @@ class LocalDeformation(Transform):
     [[-5.0, 0.5], [9.8, -0.85]]
     """
 
-    def __init__(self, src, dst, edges, points_per_edge=10, delta=0.01):
-        inner = ConstrainedFPI(src, dst, edges=edges, points_per_edge=points_per_edge, delta=delta)
+    def __init__(self, src, dst, edges, points_per_edge=16, delta=0.002, spacing="adaptive"):
+        inner = ConstrainedFPI(
+            src, dst, edges=edges, points_per_edge=points_per_edge, delta=delta, spacing=spacing
+        )
         z, w = inner._z, inner._w
         orient = np.sign(signed_area(z))
         i, j = inner.edges
