@@ -132,7 +132,7 @@ SPACINGS = ("adaptive", "graded", "uniform")
 #: "adaptive": re-spacing passes after the graded start, samples per gap
 #: between neighbouring points where the edge deviation is measured, and
 #: the share of equal spacing mixed into each new spacing (keeps points
-#: from crowding where the spline would then bend hard, see respace).
+#: from crowding where the deviation was largest, see respace).
 ADAPT_PASSES = 4
 ADAPT_SAMPLES = 24
 ADAPT_MIX = 0.3
@@ -156,8 +156,9 @@ def respace(t, gap_error, mix=ADAPT_MIX):
     proportional to c_i^(-1/2) = h_i / sqrt(gap_error[i]) give every gap
     the same deviation: the new points sit at equal quantiles of the
     density sqrt(gap_error[i]) / h_i (normalized to mean 1), of which
-    ``mix`` is replaced by the uniform density 1, so no gap shrinks below
-    ``mix`` times the equal one. Ends stay at 0 and 1.
+    ``mix`` is replaced by the uniform density 1, so no gap grows beyond
+    1 / ``mix`` times the equal one and the points do not all crowd where
+    the deviation was largest. Ends stay at 0 and 1.
     """
     t = np.asarray(t, dtype=np.float64)
     h = np.diff(t)

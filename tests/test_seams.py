@@ -1,0 +1,165 @@
+"""Seamless local deformations: the constrained edges follow their
+similarities to 1e-3 of the edge length (adaptively spaced points),
+corners stay exact, no new fold-overs, and LocalDeformation does not jump
+across a constrained edge by more than that."""
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from fpiwarp import ConstrainedFPI, LocalDeformation
+from fpiwarp._constrained import graded_spacing, respace
+from fpiwarp.metrics import grid, jacobian_determinant
+
+EDGE_BOUND = 1e-3
+SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
+PAPER = dict(points_per_edge=10, spacing="uniform", delta=0.01)
+SETTINGS = settings(max_examples=40, deadline=None)
+
+
+def cplx(p):
+    p = np.asarray(p, dtype=np.float64)
+    return p[..., 0] + 1j * p[..., 1]
+
+
+def xy(z):
+    return np.stack([z.real, z.imag], axis=-1)
+
+
+@st.composite
+def configurations(draw):
+    """The benchmark's configurations: a unit square with corners moved by
+    up to ~0.3 N(0, 1), dst with its corners moved again, opposite edges,
+    at any scale and place; kept when the paper's map is fold-free."""
+    u = st.floats(-2.5, 2.5)  # N(0, 1) draws, clipped
+    src = SQUARE + 0.3 * np.array([[draw(u), draw(u)] for _ in range(4)])
+    dst = src + 0.3 * np.array([[draw(u), draw(u)] for _ in range(4)])
+    edges = draw(st.sampled_from([(0, 2), (1, 3), (2, 0), (3, 1)]))
+    scale = draw(st.floats(0.01, 1000.0))
+    shift = np.array([draw(st.floats(-3, 3)), draw(st.floats(-3, 3))])
+    src, dst = scale * (src + shift), scale * (dst - shift)
+    try:
+        paper = ConstrainedFPI(src, dst, edges, **PAPER)
+        LocalDeformation(src, dst, edges, **PAPER)
+    except ValueError:
+        assume(False)
+    assume(np.min(jacobian_determinant(paper, grid(src, 31))) > 0)
+    return src, dst, edges
+
+
+def edge_deviation(f, src, dst, k, n=401):
+    """max |f(p) - S_k(p)| / |w_k+1 - w_k| along edge k."""
+    z, w = cplx(src), cplx(dst)
+    a = (w[(k + 1) % 4] - w[k]) / (z[(k + 1) % 4] - z[k])
+    p = z[k] + np.linspace(0, 1, n) * (z[(k + 1) % 4] - z[k])
+    return np.abs(cplx(f(xy(p))) - (w[k] + a * (p - z[k]))).max() / abs(w[(k + 1) % 4] - w[k])
+
+
+@SETTINGS
+@given(configurations())
+def test_constrained_edges_follow_their_similarity_to_1e_3(case):
+    src, dst, edges = case
+    f = ConstrainedFPI(src, dst, edges)
+    for k in edges:
+        assert edge_deviation(f, src, dst, k) <= EDGE_BOUND
+
+
+@SETTINGS
+@given(configurations())
+def test_corners_are_interpolated_exactly(case):
+    src, dst, edges = case
+    f = ConstrainedFPI(src, dst, edges)
+    size = np.abs(dst - dst.mean(axis=0)).max()
+    assert np.abs(f(src) - dst).max() <= 1e-9 * (size + np.abs(dst).max())
+
+
+@SETTINGS
+@given(configurations())
+def test_no_fold_over_where_the_paper_map_has_none(case):
+    src, dst, edges = case  # fold-free with the paper's construction (strategy)
+    f = ConstrainedFPI(src, dst, edges)
+    assert np.min(jacobian_determinant(f, grid(src, 31))) > 0
+
+
+@SETTINGS
+@given(configurations())
+def test_local_deformation_does_not_jump_across_a_constrained_edge(case):
+    src, dst, edges = case
+    loc = LocalDeformation(src, dst, edges)
+    z, w = cplx(src), cplx(dst)
+    eps = 1e-9 * np.abs(z - z.mean()).max()
+    for reg, k in zip(loc.regions, loc.edges):
+        p = z[k] + np.linspace(0.01, 0.99, 199) * (z[(k + 1) % 4] - z[k])
+        outer = cplx(loc(xy(p + eps * reg.normal)))
+        inner = cplx(loc(xy(p - eps * reg.normal)))
+        assert np.all(loc._select(p + eps * reg.normal) >= 0)
+        assert np.all(loc._select(p - eps * reg.normal) < 0)
+        assert np.abs(outer - inner).max() <= EDGE_BOUND * abs(w[(k + 1) % 4] - w[k])
+
+
+def test_a_straight_line_across_a_constrained_edge_stays_straight_within_half_a_pixel():
+    """The issue's worst configuration at 500 px per edge: a line crossing
+    edge 2 is bent by the map only smoothly, with no step at the edge."""
+    src = np.array([[-0.5017, 0.950225], [-1.658857, 0.424181], [-1.75146, 0.276858], [-0.077945, -0.418373]])
+    dst = np.array([[-0.638727, 0.56422], [-1.182106, 0.630452], [-2.031015, 0.244518], [0.191134, -1.214921]])
+    z = cplx(src)
+    px = 500 / abs(z[3] - z[2])
+    src, dst = src * px, dst * px
+    z, w = cplx(src), cplx(dst)
+    paper = LocalDeformation(src, dst, (0, 2), **PAPER)
+    loc = LocalDeformation(src, dst, (0, 2))
+    reg = loc.regions[1]  # edge 2
+    for t in np.linspace(0.02, 0.98, 25):
+        c = z[2] + t * (z[3] - z[2])
+        # the output of the line near the edge, from either side, extrapolated to the edge
+        h = 1e-3 * np.array([1, 2])
+        side_out = cplx(loc(xy(c + h * reg.normal)))
+        side_in = cplx(loc(xy(c - h * reg.normal)))
+        step = abs((2 * side_out[0] - side_out[1]) - (2 * side_in[0] - side_in[1]))
+        assert step <= 0.5  # pixels
+    # the paper's construction breaks the line by many pixels here
+    c = z[2] + 0.03 * (z[3] - z[2])
+    gap = abs(cplx(paper(xy(c + 1e-6 * reg.normal))) - cplx(paper(xy(c - 1e-6 * reg.normal))))
+    assert gap > 5
+
+
+def test_graded_spacing_is_symmetric_and_denser_near_the_ends():
+    t = graded_spacing(16)
+    assert t[0] == 0 and t[-1] == 1
+    assert np.allclose(t, 1 - t[::-1])
+    h = np.diff(t)
+    assert h[0] < h[7] and np.all(h > 0)
+
+
+def test_respace_equidistributes_an_h_squared_deviation():
+    """With deviation c_i h_i², one pass equalizes c_i h_i'² up to the mix."""
+    t = np.linspace(0, 1, 11)
+    c = np.where(np.arange(10) < 5, 16.0, 1.0)  # 4x denser points wanted on the left
+    new = respace(t, c * np.diff(t) ** 2, mix=0.0)
+    h = np.diff(new)
+    assert new[0] == 0 and new[-1] == 1 and np.all(h > 0)
+    left, right = h[new[:-1] < 0.5 - 1e-12], h[new[:-1] >= 0.5 - 1e-12]
+    assert len(left) == 8 and len(right) == 2  # density 4 on [0, 0.5], 1 on [0.5, 1]
+    assert np.allclose(left, 0.0625) and np.allclose(right, 0.25)
+    # mix keeps every gap below 1 / mix times the equal one, however the deviation is spread
+    spike = np.where(np.arange(10) == 0, 1e6, 1e-9)
+    assert np.diff(respace(t, spike, mix=0.0)).max() > 0.5
+    assert np.diff(respace(t, spike, mix=0.3)).max() <= 0.1 / 0.3 + 1e-12
+
+
+def test_respace_keeps_points_where_the_map_meets_the_edge():
+    t = graded_spacing(8)
+    assert np.array_equal(respace(t, np.zeros(7)), t)
+
+
+def test_the_paper_construction_is_one_keyword_set_away():
+    src, dst = SQUARE, SQUARE + [[0.1, 0.0], [0.0, 0.1], [-0.1, 0.05], [0.0, 0.0]]
+    f = ConstrainedFPI(src, dst, (0, 2), **PAPER)
+    assert len(f.tps.centers) == 40
+    assert all(np.allclose(t, np.linspace(0, 1, 10)) for t in f.edge_parameters)
+    g = ConstrainedFPI(src, dst, (0, 2))
+    assert len(g.tps.centers) == 64 and g.spacing == "adaptive"
+    assert g.inverse.edge_parameters is g.edge_parameters
+    with pytest.raises(ValueError, match="spacing"):
+        ConstrainedFPI(src, dst, (0, 2), spacing="chebyshev")
