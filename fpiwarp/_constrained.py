@@ -134,7 +134,7 @@ SPACINGS = ("adaptive", "graded", "uniform")
 #: the share of equal spacing mixed into each new spacing (keeps points
 #: from crowding where the deviation was largest, see respace).
 ADAPT_PASSES = 4
-ADAPT_SAMPLES = 24
+ADAPT_SAMPLES = 8
 ADAPT_MIX = 0.3
 
 
