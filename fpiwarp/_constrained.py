@@ -125,7 +125,7 @@ def constraint_points(q, edges, kind, points_per_edge, delta, spacing=None):
 
 
 #: Attributes an inverse or a fused map carries over.
-_ATTRS = ("edges", "kind", "points_per_edge", "delta", "spacing", "edge_parameters")
+_ATTRS = ("edges", "kind", "points_per_edge", "delta", "spacing", "edge_parameters", "spacing_used")
 
 #: Spacings of the constraint points along the constrained edges (``spacing=``).
 SPACINGS = ("adaptive", "graded", "uniform")
@@ -136,6 +136,10 @@ SPACINGS = ("adaptive", "graded", "uniform")
 ADAPT_PASSES = 4
 ADAPT_SAMPLES = 8
 ADAPT_MIX = 0.3
+#: "adaptive": density caps (see respace) tried in turn where the spacing
+#: folds the map over, and the grid on which fold-overs are looked for.
+ADAPT_CAPS = (None, 3.0, 2.0)
+FOLD_GRID = 25
 
 
 def graded_spacing(k):
@@ -147,7 +151,7 @@ def graded_spacing(k):
     return 0.5 * i + 0.5 * (0.5 - 0.5 * np.cos(np.pi * i))
 
 
-def respace(t, gap_error, mix=ADAPT_MIX):
+def respace(t, gap_error, mix=ADAPT_MIX, cap=None):
     """New edge parameters, as many as ``t``, that equidistribute a
     deviation of order h² per gap.
 
@@ -158,7 +162,9 @@ def respace(t, gap_error, mix=ADAPT_MIX):
     density sqrt(gap_error[i]) / h_i (normalized to mean 1), of which
     ``mix`` is replaced by the uniform density 1, so no gap grows beyond
     1 / ``mix`` times the equal one and the points do not all crowd where
-    the deviation was largest. Ends stay at 0 and 1.
+    the deviation was largest. ``cap``: no density above ``cap`` times
+    the mean, so no gap below about 1 / ``cap`` times the equal one
+    (None: no such bound). Ends stay at 0 and 1.
     """
     t = np.asarray(t, dtype=np.float64)
     h = np.diff(t)
@@ -167,6 +173,9 @@ def respace(t, gap_error, mix=ADAPT_MIX):
         return t  # nothing to equidistribute (the map meets the edge to rounding)
     density = np.sqrt(np.maximum(e, 1e-6 * e.max())) / h
     density = (1 - mix) * density / np.sum(density * h) + mix
+    if cap is not None:
+        for _ in range(3):  # clipping lowers the mean: clip again against the new one
+            density = np.minimum(density, cap * np.sum(density * h))
     cum = np.concatenate([[0.0], np.cumsum(density * h)])
     return np.interp(np.linspace(0.0, 1.0, len(t)), cum / cum[-1], t)
 
@@ -189,34 +198,71 @@ def _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, spacing):
     return ThinPlateSpline.fit(m_src._map(pz), m_dst._map(pw)), pz, pw
 
 
+def _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap):
+    ts = [graded_spacing(k)] * 2
+    m_inv = m_dst.inverse
+    for _ in range(ADAPT_PASSES):
+        tps, _, _ = _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, ts)
+
+        def f(p, tps=tps):
+            return m_inv._map(tps._map(m_src._map(p)))
+
+        ts = [respace(t, edge_deviation(f, z, w, e, t), cap=cap) for e, t in zip(edges, ts)]
+    return ts
+
+
+def folds(tps, m_src, z, n=FOLD_GRID):
+    """Does m_W⁻¹ ∘ tps ∘ m_src fold over somewhere on an n x n bilinear
+    grid spanning the counter-clockwise quad z (boundary included)? The
+    Möbius maps keep orientation, so the sign of the spline's Jacobian
+    decides."""
+    s = np.linspace(0.0, 1.0, n)
+    u, v = np.meshgrid(s, s)
+    p = (1 - v) * ((1 - u) * z[0] + u * z[1]) + v * ((1 - u) * z[3] + u * z[2])
+    with np.errstate(all="ignore"):
+        _, fz, fzb = tps._wirtinger(m_src._map(p.reshape(-1)))
+    return not np.all(np.abs(fz) ** 2 - np.abs(fzb) ** 2 > 0)
+
+
 def fit_spline(z, w, m_src, m_dst, edges, kind, k, delta, spacing="adaptive"):
-    """phi, the constraint points on z and on w, and the edge parameters
-    used (one array per constrained edge), for counter-clockwise quads z, w.
+    """phi, the constraint points on z and on w, the edge parameters used
+    (one array per constrained edge) and the name of the spacing used, for
+    counter-clockwise quads z, w.
 
     "uniform": the paper's equal spacing; "graded": see
     :func:`graded_spacing`; "adaptive": from the graded spacing,
     ADAPT_PASSES times measure the deviation from each edge's similarity
-    per gap and :func:`respace` to equidistribute it, then fit once more:
-    a fixed number of passes, so the result depends continuously on the
-    quads (no switching between candidates).
+    per gap and :func:`respace` to equidistribute it, then fit once more
+    (a fixed number of passes: the spacing depends continuously on the
+    quads). Points crowded near a corner can make the spline fold over
+    next to a strongly stretched or shrunk free edge; so where the result
+    folds (:func:`folds`), the same is done with the density capped
+    (ADAPT_CAPS), then the graded and the equal spacing are tried, and the
+    first that does not fold is kept (none: the uncapped one).
     """
     if spacing not in SPACINGS:
         raise ValueError(f"spacing must be one of {SPACINGS}, got {spacing!r}")
+    uniform = ("uniform", lambda: [np.linspace(0.0, 1.0, k)] * 2)
+    graded = ("graded", lambda: [graded_spacing(k)] * 2)
     if spacing == "uniform":
-        ts = [np.linspace(0.0, 1.0, k)] * 2
+        tries = [uniform]
+    elif spacing == "graded":
+        tries = [graded]
     else:
-        ts = [graded_spacing(k)] * 2
-    passes = ADAPT_PASSES if spacing == "adaptive" else 0
-    for _ in range(passes):
-        tps, _, _ = _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, ts)
-        m_inv = m_dst.inverse
-
-        def f(p):
-            return m_inv._map(tps._map(m_src._map(p)))
-
-        ts = [respace(t, edge_deviation(f, z, w, e, t)) for e, t in zip(edges, ts)]
-    tps, pz, pw = _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, ts)
-    return tps, pz, pw, ts
+        tries = [
+            ("adaptive" + (f", density capped at {cap:g}" if cap else ""),
+             lambda cap=cap: _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap))
+            for cap in ADAPT_CAPS
+        ] + [graded, uniform]
+    first = None
+    for used, make in tries:
+        ts = make()
+        tps, pz, pw = _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, ts)
+        if first is None:
+            first = (tps, pz, pw, ts, used)
+        if len(tries) == 1 or not folds(tps, m_src, z):
+            return tps, pz, pw, ts, used
+    return first
 
 
 class ConstrainedFPI(Transform):
@@ -260,7 +306,9 @@ class ConstrainedFPI(Transform):
     edges, kind : the normalized edge pair and "opposite" or "adjacent".
     constraints : (src points, dst points), each (4 K, 2): the spline's
         constraints before the Möbius change of coordinates.
-    spacing, edge_parameters : the spacing asked for, and the edge
+    spacing, spacing_used, edge_parameters : the spacing asked for, the
+        one used ("adaptive" gives way to a capped or plainer spacing where
+        it would fold the map over, see :func:`fit_spline`), and the edge
         parameters t in [0, 1] used, one array per constrained edge.
 
     ``inverse`` is numerical: m_Z⁻¹ ∘ phi⁻¹ ∘ m_W with phi⁻¹ by Newton's
@@ -289,13 +337,13 @@ class ConstrainedFPI(Transform):
         zs, ws = (np.conj(z), np.conj(w)) if flip else (z, w)
         m_src = parallelogram_mobius(zs)
         m_dst = parallelogram_mobius(ws)
-        tps, pz, pw, ts = fit_spline(zs, ws, m_src, m_dst, edges, kind, k, delta, spacing)
+        tps, pz, pw, ts, used = fit_spline(zs, ws, m_src, m_dst, edges, kind, k, delta, spacing)
         if flip:
             m_src, tps, m_dst = m_src.conjugated(), tps.conjugated(), m_dst.conjugated()
         self._init_parts(z, w, m_src, tps, m_dst.inverse)
         self.edges, self.kind = edges, kind
         self.points_per_edge, self.delta, self.spacing = k, delta, spacing
-        self.edge_parameters = tuple(ts)
+        self.edge_parameters, self.spacing_used = tuple(ts), used
         self.constraints = (_xy(pz if not flip else np.conj(pz)), _xy(pw if not flip else np.conj(pw)))
 
     def _init_parts(self, z, w, pre, core, post):
