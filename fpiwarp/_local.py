@@ -17,11 +17,11 @@ Consequences of that rule, stated once:
 
 - Across the constrained edges themselves the map jumps by no more than
   the constrained FPI strays from each edge's similarity along the edge:
-  with the defaults (16 adaptively spaced points per edge, δ = 0.002) at
-  most 8.1e-4 of the (output) edge length over 320 random fold-free
-  configurations, median 1.4e-4 (0.4 px at most on a 500-px edge;
-  benchmarks/seams.py); the paper's 10 equally spread points with
-  δ = 0.01 gave up to 2.0e-2.
+  over 320 random fold-free configurations (benchmarks/seams.py), with
+  the defaults (the paper's 10 equally spread points per edge) median
+  2.5e-3 of the (output) edge length, p90 5.2e-3, at most 2.0e-2 (10 px
+  on a 500-px edge); with points_per_edge=16, spacing="adaptive"
+  median 1.9e-4, p90 4.1e-4, at most 1.4e-3 (0.7 px).
 - Beyond the free edges there is no third region: the strip (or wedge)
   between the two lines, continued past the free edges, keeps the
   constrained FPI, with its pole if it has one there. Along the lines'
@@ -92,7 +92,7 @@ class LocalDeformation(Transform):
     [[-5.0, 0.5], [9.8, -0.85]]
     """
 
-    def __init__(self, src, dst, edges, points_per_edge=16, delta=0.002, spacing="adaptive"):
+    def __init__(self, src, dst, edges, points_per_edge=10, delta=0.01, spacing="uniform"):
         inner = ConstrainedFPI(
             src, dst, edges=edges, points_per_edge=points_per_edge, delta=delta, spacing=spacing
         )

@@ -215,7 +215,7 @@ def test_points_per_edge_is_checked_against_the_block_limit():
     kmax = MAX_CENTERS // 4
     f = ConstrainedFPI(RECT, rotate_edge(RECT, 1, 10), edges=(3, 1), points_per_edge=kmax)
     assert len(f.tps.centers) == MAX_CENTERS
-    assert len(ConstrainedFPI(RECT, RECT, edges=(0, 1)).tps.centers) == 4 * kmax  # the default: 16 points per edge
+    assert len(ConstrainedFPI(RECT, RECT, edges=(0, 1)).tps.centers) == 40
     with pytest.raises(ValueError, match=f"at most {MAX_CENTERS}"):
         ConstrainedFPI(RECT, RECT, edges=(3, 1), points_per_edge=kmax + 1)
     with pytest.raises(ValueError, match="2.."):

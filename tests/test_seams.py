@@ -1,5 +1,5 @@
 """Seamless local deformations: the constrained edges follow their
-similarities to 1e-3 of the edge length (adaptively spaced points),
+similarities to about 1e-3 of the edge length (adaptively spaced points),
 corners stay exact, no new fold-overs, and LocalDeformation does not jump
 across a constrained edge by more than that."""
 
@@ -14,7 +14,8 @@ from fpiwarp.metrics import grid, jacobian_determinant
 
 EDGE_BOUND = 1e-3
 SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
-PAPER = dict(points_per_edge=10, spacing="uniform", delta=0.01)
+PAPER = dict(points_per_edge=10, spacing="uniform", delta=0.01)  # the default
+NEW = dict(points_per_edge=16, spacing="adaptive", delta=0.01)  # opt-in, see the report in the benchmark
 SETTINGS = settings(max_examples=40, deadline=None)
 
 
@@ -75,9 +76,9 @@ def seeded_configurations(n, seed):
 
 
 def test_constrained_edges_follow_their_similarity_to_1e_3_on_the_benchmark_configurations():
-    """The first 80 of the benchmark's 320 (all 320: max 8.1e-4)."""
+    """The first 80 of the benchmark's 320 (all 320: two above, 1.4e-3 at most)."""
     for src, dst, edges in seeded_configurations(80, seed=16):
-        f = ConstrainedFPI(src, dst, edges)
+        f = ConstrainedFPI(src, dst, edges, **NEW)
         for k in edges:
             assert edge_deviation(f, src, dst, k) <= EDGE_BOUND
 
@@ -85,11 +86,11 @@ def test_constrained_edges_follow_their_similarity_to_1e_3_on_the_benchmark_conf
 @SETTINGS
 @given(configurations())
 def test_constrained_edges_follow_their_similarity(case):
-    """Any such configuration: 1e-3 held for all but 4 of 2,920 random ones
-    measured (p99 6e-4), the worst 2.7e-3, against up to 2.7e-2 for the
-    paper's 10 equally spread points."""
+    """Any such configuration: 1e-3 is not guaranteed (2 of the benchmark's
+    320 exceed it), but 5e-3 held wherever the adaptive spacing is used,
+    against up to 2.7e-2 for the paper's 10 equally spread points."""
     src, dst, edges = case
-    f = ConstrainedFPI(src, dst, edges)
+    f = ConstrainedFPI(src, dst, edges, **NEW)
     paper = ConstrainedFPI(src, dst, edges, **PAPER)
     for k in edges:
         dev = edge_deviation(f, src, dst, k)
@@ -103,7 +104,7 @@ def test_constrained_edges_follow_their_similarity(case):
 @given(configurations())
 def test_corners_are_interpolated_exactly(case):
     src, dst, edges = case
-    f = ConstrainedFPI(src, dst, edges)
+    f = ConstrainedFPI(src, dst, edges, **NEW)
     size = np.abs(dst - dst.mean(axis=0)).max()
     assert np.abs(f(src) - dst).max() <= 1e-9 * (size + np.abs(dst).max())
 
@@ -112,13 +113,13 @@ def test_corners_are_interpolated_exactly(case):
 @given(configurations())
 def test_no_fold_over_where_the_paper_map_has_none(case):
     src, dst, edges = case  # fold-free with the paper's construction (strategy)
-    f = ConstrainedFPI(src, dst, edges)
+    f = ConstrainedFPI(src, dst, edges, **NEW)
     assert np.min(jacobian_determinant(f, grid(src, 31))) > 0
 
 
 def local_jump(src, dst, edges):
     """Largest jump of LocalDeformation across its constrained edges, relative to the edge length."""
-    loc = LocalDeformation(src, dst, edges)
+    loc = LocalDeformation(src, dst, edges, **NEW)
     z, w = cplx(src), cplx(dst)
     eps = 1e-9 * np.abs(z - z.mean()).max()
     worst = 0.0
@@ -140,25 +141,29 @@ def test_local_deformation_jumps_less_than_1e_3_on_the_benchmark_configurations(
 @given(configurations())
 def test_local_deformation_jumps_no_more_than_the_edge_deviation(case):
     src, dst, edges = case
-    f = ConstrainedFPI(src, dst, edges)
+    f = ConstrainedFPI(src, dst, edges, **NEW)
     dev = max(edge_deviation(f, src, dst, k) for k in normalize_edges(edges)[0])
-    assert dev <= 5 * EDGE_BOUND
+    if f.spacing_used == "adaptive":  # else it gave way, not to fold over (see the edge test)
+        assert dev <= 5 * EDGE_BOUND
     # the jump is the deviation itself (sampled at other points: within a few %)
     assert local_jump(src, dst, edges) <= 1.05 * dev + 1e-6  # + the map's change over the 2e-9 step
 
 
 def test_points_crowded_at_a_corner_give_way_where_they_would_fold_the_map():
     """Free edge 0 stretched 4.4 times: adaptively spaced points crowd at
-    corner 1 and the spline folds there (min Jacobian -0.011); the
-    density-capped spacing does not, nor does the paper's map."""
+    corner 1 and the spline folds there; a plainer spacing does not, nor
+    does the paper's map."""
     src = np.array([[-0.425, -1.00625], [-0.25, -1.08125], [1.1, -0.1], [-0.5, 0.5]])
     dst = src.copy()
     dst[1] = [-0.25, -1.83125]
-    assert np.min(jacobian_determinant(ConstrainedFPI(src, dst, (1, 3), **PAPER), grid(src, 61))) > 0
-    f = ConstrainedFPI(src, dst, (1, 3))
-    assert f.spacing_used == "adaptive, density capped at 3"
+    paper = ConstrainedFPI(src, dst, (1, 3), **PAPER)
+    assert np.min(jacobian_determinant(paper, grid(src, 61))) > 0
+    f = ConstrainedFPI(src, dst, (1, 3), **NEW)
+    assert f.spacing_used != "adaptive"  # gave way (with the defaults: to the equal spacing)
     assert np.min(jacobian_determinant(f, grid(src, 61))) > 0
-    assert max(edge_deviation(f, src, dst, k) for k in (1, 3)) < 2 * EDGE_BOUND
+    # the bound is lost here (7.4e-3), but the paper's map strays farther still (1.1e-2)
+    dev = max(edge_deviation(f, src, dst, k) for k in (1, 3))
+    assert dev < 0.7 * max(edge_deviation(paper, src, dst, k) for k in (1, 3))
 
 
 def test_a_straight_line_across_a_constrained_edge_stays_straight_within_half_a_pixel():
@@ -171,7 +176,7 @@ def test_a_straight_line_across_a_constrained_edge_stays_straight_within_half_a_
     src, dst = src * px, dst * px
     z, w = cplx(src), cplx(dst)
     paper = LocalDeformation(src, dst, (0, 2), **PAPER)
-    loc = LocalDeformation(src, dst, (0, 2))
+    loc = LocalDeformation(src, dst, (0, 2), **NEW)
     reg = loc.regions[1]  # edge 2
     for t in np.linspace(0.02, 0.98, 25):
         c = z[2] + t * (z[3] - z[2])
@@ -216,13 +221,13 @@ def test_respace_keeps_points_where_the_map_meets_the_edge():
     assert np.array_equal(respace(t, np.zeros(7)), t)
 
 
-def test_the_paper_construction_is_one_keyword_set_away():
+def test_the_paper_construction_is_the_default_and_the_adaptive_one_a_keyword_set_away():
     src, dst = SQUARE, SQUARE + [[0.1, 0.0], [0.0, 0.1], [-0.1, 0.05], [0.0, 0.0]]
-    f = ConstrainedFPI(src, dst, (0, 2), **PAPER)
-    assert len(f.tps.centers) == 40
+    f = ConstrainedFPI(src, dst, (0, 2))
+    assert len(f.tps.centers) == 40 and f.spacing_used == "uniform"
     assert all(np.allclose(t, np.linspace(0, 1, 10)) for t in f.edge_parameters)
-    g = ConstrainedFPI(src, dst, (0, 2))
-    assert len(g.tps.centers) == 64 and g.spacing == "adaptive"
+    g = ConstrainedFPI(src, dst, (0, 2), **NEW)
+    assert len(g.tps.centers) == 64 and g.spacing_used == "adaptive"
     assert g.inverse.edge_parameters is g.edge_parameters
     with pytest.raises(ValueError, match="spacing"):
         ConstrainedFPI(src, dst, (0, 2), spacing="chebyshev")
