@@ -37,7 +37,7 @@ def _as_image(item):
 
 
 def warp_images(images, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
-                backend_options=None):
+                backend_options=None, antialias=False):
     """Warp each of ``images`` (arrays, or paths of image files) by
     ``transform``; yield the warped arrays in order, one at a time.
 
@@ -45,17 +45,19 @@ def warp_images(images, transform, output_shape=None, *, order=1, mode="constant
     first image is read. Same-size images share the map's evaluation.
     """
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
-                    backend_options=backend_options)
+                    backend_options=backend_options, antialias=antialias)
     return (warper(_as_image(item)) for item in images)
 
 
-def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy"):
+def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
+               antialias=False):
     """Warp a stack of same-size images, (N, H, W) or (N, H, W, C).
 
     ``transforms`` is one map for all images or a sequence of N maps, one
     per image. Returns an (N, rows, cols[, C]) array of the input's dtype.
     On a backend that batches (numpy: one map is evaluated once and all N
-    images sampled in one pass) the stack goes in one call.
+    images sampled in one pass) the stack goes in one call. ``antialias``
+    as in :func:`fpiwarp.warp_image`.
     """
     stack = np.asarray(images) if not isinstance(images, np.ndarray) else images
     if stack.ndim not in (3, 4) or stack.shape[0] == 0:
@@ -65,7 +67,8 @@ def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant
     maps = [transforms] if isinstance(transforms, Transform) else list(transforms)
     if not isinstance(transforms, Transform) and len(maps) != n:
         raise ArgumentError(f"got {len(maps)} maps for {n} images; give one map or one per image")
-    warpers = [Warper(t, output_shape, order=order, mode=mode, cval=cval, backend=backend) for t in maps]
+    warpers = [Warper(t, output_shape, order=order, mode=mode, cval=cval, backend=backend, antialias=antialias)
+               for t in maps]
     if warpers[0].capabilities.batches:
         shape = check_output_shape(output_shape, first)
         for warper in warpers:  # sizes and stages, as warp_image checks them
@@ -77,6 +80,7 @@ def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant
             order=warpers[0].order,
             mode=mode,
             cval=check_cval(cval, c, stack.dtype),
+            **({"antialias": True} if warpers[0].antialias else {}),
         )
     else:
         chosen = warpers * n if len(warpers) == 1 else warpers
