@@ -25,7 +25,7 @@ footprint). So:
   nx = ny = 1 and the pixel is plain interpolation at p, bit for bit;
 * the work is bounded: at most AA_MAX_TAPS² sub-samples per pixel (a
   pixel next to the pole, whose footprint is huge, reads at most that
-  many, sparsely); a Jacobian that is not finite counts as magnifying;
+  many, sparsely); a NaN Jacobian counts as magnifying;
 * border modes act on every sub-sample's taps as in
   :func:`fpiwarp._sampling.sample`; a pixel whose own source position is
   not finite or beyond COORD_LIMIT gives cval (the pole rule), and a
@@ -42,10 +42,11 @@ from .positions import CHUNK_PIXELS, pixel_grid
 
 def tap_counts(edge):
     """Sub-samples along a footprint edge of complex length vector ``edge``
-    (source pixels per output pixel): int array, 1..AA_MAX_TAPS."""
-    length = np.abs(edge)
-    with np.errstate(invalid="ignore"):
-        n = np.ceil(np.where(np.isfinite(length), length, 0.0) - AA_SLACK)
+    (source pixels per output pixel): int array, 1..AA_MAX_TAPS (NaN
+    lengths give 1, infinite ones AA_MAX_TAPS)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        length = np.abs(edge)
+        n = np.ceil(np.where(np.isnan(length), 0.0, length) - AA_SLACK)
     return np.clip(n, 1, AA_MAX_TAPS).astype(np.int64)
 
 

@@ -165,6 +165,7 @@ def run_batch(
     scheduler=None,
     summary=None,
     backend_options=None,
+    antialias=False,
 ):
     """Warp every image file of ``input_dir`` into ``output_dir``.
 
@@ -178,12 +179,13 @@ def run_batch(
     ``progress(summary)`` is called after each file. Returns the
     :class:`BatchSummary` (or fills ``summary``); on KeyboardInterrupt the
     files in progress are finished or cleaned up, the summary is marked
-    interrupted and the interrupt re-raised.
+    interrupted and the interrupt re-raised. ``antialias`` as in
+    :func:`fpiwarp.warp_image`.
     """
     if int(jobs) < 1:
         raise ArgumentError(f"jobs must be at least 1, got {jobs}")
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
-                    backend_options=backend_options)
+                    backend_options=backend_options, antialias=antialias)
     pairs = plan(input_dir, output_dir, pattern)
     Path(output_dir).mkdir(parents=True, exist_ok=True)
     summary = BatchSummary() if summary is None else summary

@@ -192,7 +192,8 @@ def cmd_warp(args):
     image, info = read_image(args.input)
     check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
     warped = warp_image(
-        image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend
+        image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend,
+        antialias=args.antialias,
     )
     write_image(args.output, warped, info, overwrite=args.overwrite)
     print(f"wrote {args.output}")
@@ -222,6 +223,7 @@ def cmd_batch(args):
             order=args.order,
             mode=args.mode,
             cval=cval,
+            antialias=args.antialias,
             output_shape=output_shape,
             progress=progress,
             scheduler=args.scheduler,
@@ -310,6 +312,9 @@ def _add_warp_options(p):
     p.add_argument("--backend", default="numpy", help="backend name (see 'fpiwarp backends'); default numpy")
     p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
     p.add_argument("--mode", choices=MODES, default="constant", help="border mode (default constant)")
+    p.add_argument("--antialias", action="store_true",
+                   help="filter each output pixel over its footprint in the source: no moire where the warp "
+                   "shrinks, unchanged where it does not (numpy and opencl backends)")
     p.add_argument("--cval", help="value outside the image in constant mode: V or V1,V2,... per channel")
     p.add_argument(
         "--output-shape",
