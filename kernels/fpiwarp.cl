@@ -140,7 +140,9 @@ void warp_image_aa(fw_block_t block, __global const FW_T *restrict src, int w, i
     eyx[l] = dzb.im - dz.im;
     eyy[l] = dz.re - dzb.re;
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (l >= FW_LOCAL_X / FW_VN)
+    /* work-items whose pixels all lie past the row's end (padding) write
+     * nothing: their sub-samples would only redo the row's last pixel */
+    if (l >= FW_LOCAL_X / FW_VN || gx0 + FW_VN * l >= ow)
         return;
     int at0 = FW_VN * l;
     fw_fv sx = FW_VLOAD(pos_x + at0), sy = FW_VLOAD(pos_y + at0);
