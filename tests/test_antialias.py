@@ -10,9 +10,11 @@ import fpiwarp
 from fpiwarp import FPI, Mobius, RLinear
 from fpiwarp._antialias import tap_counts
 from fpiwarp.backends import backend_capabilities
+from fpiwarp.backends.capabilities import Capabilities
 from fpiwarp.block import evaluate
 from fpiwarp.block.jacobian import jacobian, wirtinger
 from fpiwarp.block.sampling_rules import AA_MAX_TAPS
+from fpiwarp.validation import check_antialias
 
 SHRINK = RLinear(0.35 + 0.08j, 0.06j, 2 + 1j)  # about 1/3, sheared
 
@@ -161,17 +163,15 @@ def test_batch_entry_points_pass_antialias():
 PARITY_MAPS = ["fpi", "mobius", "compound", "tps", "tps_inverse"]
 
 
-def test_backends_without_antialiasing_refuse_it_in_one_line(any_backend):
-    if backend_capabilities(any_backend).antialias:
-        pytest.skip(f"{any_backend} antialiases")
-    with pytest.raises(fpiwarp.FpiwarpError, match="does not antialias"):
-        fpiwarp.warp_image(np.zeros((4, 4), np.uint8), SHRINK, antialias=True, backend=any_backend)
+def test_every_backend_antialiases_and_one_without_would_refuse_in_one_line(any_backend):
+    assert backend_capabilities(any_backend).antialias
+    with pytest.raises(fpiwarp.FpiwarpError, match="the x backend does not antialias"):
+        check_antialias(True, Capabilities(), "x")
+    assert check_antialias(False, Capabilities(), "x") is False
 
 
 @pytest.mark.parametrize("name", PARITY_MAPS)
 def test_backends_agree_on_antialiased_warps(any_backend, name):
-    if not backend_capabilities(any_backend).antialias:
-        pytest.skip(f"{any_backend} does not antialias")
     transform = _shrunk(name)
     rng = np.random.default_rng(11)
     for dtype in kernel_cases.DTYPES:
@@ -187,11 +187,15 @@ def test_backends_agree_on_antialiased_warps(any_backend, name):
 
 @pytest.mark.parametrize("mode", kernel_cases.MODES)
 def test_backends_agree_antialiasing_next_to_the_pole(any_backend, mode):
-    if not backend_capabilities(any_backend).antialias:
-        pytest.skip(f"{any_backend} does not antialias")
     m = Mobius(2 + 1j, 3 - 1j, 0.004 + 0.006j, 1)
     img = kernel_cases.make_image((48, 64, 3), np.uint8)
     want = fpiwarp.warp_image(img, m.inverse, (130, 130), mode=mode, cval=[1, 2, 3], antialias=True)
     got = fpiwarp.warp_image(img, m.inverse, (130, 130), mode=mode, cval=[1, 2, 3], antialias=True,
                              backend=any_backend)
     kernel_cases.assert_images_agree(got, want, np.uint8)
+
+
+def test_gl_refuses_hardware_filter_with_antialias(gl_backend):
+    with pytest.raises(ValueError, match="cannot be combined"):
+        fpiwarp.warp_image(np.zeros((4, 4), np.uint8), SHRINK, antialias=True, backend=gl_backend,
+                           backend_options={"hardware_filter": True})

@@ -72,6 +72,7 @@ WARP = Capabilities(max_side=MAX_DEVICE_SIDE, max_stages=MAX_STAGES, antialias=T
 GL = Capabilities(
     max_side=MAX_DEVICE_SIDE,
     max_stages=MAX_STAGES,
+    antialias=True,
     options=(
         BackendOption(
             "hardware_filter",
