@@ -199,3 +199,37 @@ def test_gl_refuses_hardware_filter_with_antialias(gl_backend):
     with pytest.raises(ValueError, match="cannot be combined"):
         fpiwarp.warp_image(np.zeros((4, 4), np.uint8), SHRINK, antialias=True, backend=gl_backend,
                            backend_options={"hardware_filter": True})
+
+
+def test_viewer_export_antialiases(gl_backend):
+    """Renderer(antialias=True).warp_full is the picture of warp_image(antialias=True)."""
+    from fpiwarp import gl as fgl
+    from fpiwarp.backends import get_backend
+
+    backend = get_backend(gl_backend)
+    img = kernel_cases.make_image((48, 64, 3), np.uint8)
+    want = fpiwarp.warp_image(img, SHRINK, antialias=True)
+    renderer = fgl.Renderer(backend.ctx, warper=backend.warper, antialias=True)
+    try:
+        renderer.set_image(img)
+        renderer.set_transform(SHRINK)
+        kernel_cases.assert_images_agree(renderer.warp_full(), want, np.uint8)
+    finally:
+        renderer.release()
+    with pytest.raises(fpiwarp.FpiwarpError, match="antialias must be True or False"):
+        fgl.Renderer(backend.ctx, warper=backend.warper, antialias="on")
+
+
+def test_cli_warp_antialias(tmp_path):
+    """``fpiwarp warp --antialias`` writes the picture of warp_image(antialias=True)."""
+    from fpiwarp.cli import main
+
+    img = kernel_cases.make_image((40, 60, 3), np.uint8)
+    src, out_plain, out_aa = tmp_path / "in.png", tmp_path / "plain.png", tmp_path / "aa.png"
+    fpiwarp.write_image(src, img)
+    corners = ["--src", "0,0,59,0,59,39,0,39", "--dst", "2,1,20,0,19,13,0,12"]
+    assert main(["warp", str(src), str(out_aa), *corners, "--antialias"]) == 0
+    assert main(["warp", str(src), str(out_plain), *corners]) == 0
+    f = FPI([[0, 0], [59, 0], [59, 39], [0, 39]], [[2, 1], [20, 0], [19, 13], [0, 12]])
+    assert np.array_equal(fpiwarp.read_image(out_aa)[0], fpiwarp.warp_image(img, f, antialias=True))
+    assert np.array_equal(fpiwarp.read_image(out_plain)[0], fpiwarp.warp_image(img, f))
