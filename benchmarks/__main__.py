@@ -1,4 +1,4 @@
-"""Run the benchmarks: ``python3 -m benchmarks [--quick] [--out DIR] [--only speed|quality]``.
+"""Run the benchmarks: ``python3 -m benchmarks [--quick] [--out DIR] [--only speed|quality|antialias]``.
 
 Writes into DIR (default: benchmarks/results next to this file), with
 stable names so a rerun replaces the previous results:
@@ -6,7 +6,9 @@ stable names so a rerun replaces the previous results:
 - machine.json: CPU, cores, load, library versions, backend devices;
 - speed.md, speed.json, speed_scaling.png: times and ratios to the peers;
 - quality.md, quality.json, quality_fig8.png, quality_fig11.png: the
-  §5.1 distortion table and the Fig. 8 / Fig. 11 pictures.
+  §5.1 distortion table and the Fig. 8 / Fig. 11 pictures;
+- antialias.md, antialias.json, antialias_crops.png: antialiasing's PSNR
+  against a supersampled reference beside the peers, and its cost.
 
 ``--quick`` is a smoke run of a few seconds (small sizes, coarse grids)
 that exercises every code path; its numbers mean little.
@@ -19,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from . import machine, quality, speed
+from . import antialias, machine, quality, speed
 
 DEFAULT_OUT = Path(__file__).resolve().parent / "results"
 
@@ -45,7 +47,7 @@ def parse_args(argv):
     parser.add_argument(
         "--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT.name}/ beside this file)"
     )
-    parser.add_argument("--only", choices=("speed", "quality"), help="run one half only")
+    parser.add_argument("--only", choices=("speed", "quality", "antialias"), help="run one part only")
     parser.add_argument(
         "--backends",
         type=lambda s: [b for b in s.split(",") if b],
@@ -100,6 +102,14 @@ def main(argv=None):
         _write(out / "quality_fig8.png", lambda p: plots.fig8(result, p, n=n, dpi=dpi))
         if result.get("constrained"):
             _write(out / "quality_fig11.png", lambda p: plots.fig11(result, p, n=n, dpi=dpi))
+
+    if args.only in (None, "antialias"):
+        t0 = time.perf_counter()
+        result = antialias.run(quick=args.quick, log=log)
+        info["antialias_wall_s"] = round(time.perf_counter() - t0, 1)
+        write_text(out / "antialias.md", antialias.markdown(result, machine_md))
+        write_json(out / "antialias.json", {"machine": info, **antialias.to_json(result)})
+        _write(out / "antialias_crops.png", lambda p: antialias.figure(result, p, dpi=50 if args.quick else 90))
 
     try:
         info["load_average_at_end"] = [round(v, 2) for v in os.getloadavg()]

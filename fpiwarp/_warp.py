@@ -62,7 +62,7 @@ def map_points(transform, points, backend="numpy"):
 
 
 def warp_image(image, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
-               backend_options=None):
+               backend_options=None, antialias=False):
     """Warp ``image`` by ``transform``, which maps source to output coordinates.
 
     Each output pixel samples the source at ``transform.inverse`` of its
@@ -99,6 +99,13 @@ def warp_image(image, transform, output_shape=None, *, order=1, mode="constant",
         Options the backend declares (see
         :func:`fpiwarp.backend_capabilities`), e.g.
         ``{"hardware_filter": True}`` on "gl".
+    antialias : bool, optional
+        True filters each output pixel over its footprint in the source
+        (the pixel square under the inverse map, from its analytic
+        Jacobian): no aliasing where the warp shrinks, plain interpolation
+        of ``order`` where it does not; at most 16×16 sub-samples per pixel
+        (the numpy reference is fpiwarp/_antialias.py). Default False. Backends that
+        antialias declare it (``capabilities.antialias``).
 
     Returns
     -------
@@ -137,7 +144,8 @@ def warp_image(image, transform, output_shape=None, *, order=1, mode="constant",
     (4, 5)
     """
     caps = backend_capabilities(backend)
-    args = check_warp_arguments(image, transform, output_shape, order, mode, cval, caps, backend, backend_options)
+    args = check_warp_arguments(image, transform, output_shape, order, mode, cval, caps, backend, backend_options,
+                                antialias)
     out = get_backend(backend).warp_image(
         args.image, transform, args.output_shape, order=args.order, mode=args.mode, cval=args.cval, **args.options
     )

@@ -37,7 +37,7 @@ def _as_image(item):
 
 
 def warp_images(images, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
-                backend_options=None):
+                backend_options=None, antialias=False):
     """Warp each of ``images`` by ``transform``; yield the warped arrays in
     order, one at a time (bounded memory).
 
@@ -51,7 +51,7 @@ def warp_images(images, transform, output_shape=None, *, order=1, mode="constant
         files (read with :func:`fpiwarp.read_image`, one at a time).
     transform : Transform
         The map, from source to output coordinates (x = column, y = row).
-    output_shape, order, mode, cval, backend, backend_options
+    output_shape, order, mode, cval, backend, backend_options, antialias
         As in :func:`fpiwarp.warp_image`; checked before the first image
         is read.
 
@@ -82,11 +82,12 @@ def warp_images(images, transform, output_shape=None, *, order=1, mode="constant
     [[[0, 0, 0], [10, 10, 10]], [[0, 0, 0], [20, 20, 20]]]
     """
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
-                    backend_options=backend_options)
+                    backend_options=backend_options, antialias=antialias)
     return (warper(_as_image(item)) for item in images)
 
 
-def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy"):
+def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
+               antialias=False):
     """Warp a stack of same-size images, with one map for all or one each.
 
     Parameters
@@ -96,7 +97,7 @@ def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant
     transforms : Transform or sequence of Transform
         One map for all images, or N maps, one per image (source to output
         coordinates, x = column, y = row).
-    output_shape, order, mode, cval, backend
+    output_shape, order, mode, cval, backend, antialias
         As in :func:`fpiwarp.warp_image`.
 
     Returns
@@ -129,7 +130,8 @@ def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant
     maps = [transforms] if isinstance(transforms, Transform) else list(transforms)
     if not isinstance(transforms, Transform) and len(maps) != n:
         raise ArgumentError(f"got {len(maps)} maps for {n} images; give one map or one per image")
-    warpers = [Warper(t, output_shape, order=order, mode=mode, cval=cval, backend=backend) for t in maps]
+    warpers = [Warper(t, output_shape, order=order, mode=mode, cval=cval, backend=backend, antialias=antialias)
+               for t in maps]
     if warpers[0].capabilities.batches:
         shape = check_output_shape(output_shape, first)
         for warper in warpers:  # sizes and stages, as warp_image checks them
@@ -141,6 +143,7 @@ def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant
             order=warpers[0].order,
             mode=mode,
             cval=check_cval(cval, c, stack.dtype),
+            **({"antialias": True} if warpers[0].antialias else {}),
         )
     else:
         chosen = warpers * n if len(warpers) == 1 else warpers

@@ -167,6 +167,7 @@ def run_batch(
     summary=None,
     backend_options=None,
     orientation="apply",
+    antialias=False,
 ):
     """Warp every image file of ``input_dir`` into ``output_dir``.
 
@@ -189,7 +190,7 @@ def run_batch(
     overwrite : bool, optional
         Redo existing outputs; by default they are kept and counted as
         skipped, so a rerun resumes.
-    backend, order, mode, cval, output_shape, backend_options
+    backend, order, mode, cval, output_shape, backend_options, antialias
         As in :func:`fpiwarp.warp_image`.
     progress : callable, optional
         ``progress(summary)`` is called after each file.
@@ -237,7 +238,7 @@ def run_batch(
     check_orientation(orientation)
     options = FileOptions(overwrite=bool(overwrite), orientation=orientation)
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
-                    backend_options=backend_options)
+                    backend_options=backend_options, antialias=antialias)
     pairs = plan(input_dir, output_dir, pattern)
     Path(output_dir).mkdir(parents=True, exist_ok=True)
     summary = BatchSummary() if summary is None else summary

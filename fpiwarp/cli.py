@@ -25,24 +25,28 @@ partial or temporary file is left behind.
 the Python API's ``output_shape`` is (rows, cols) = (HEIGHT, WIDTH).
 """
 
-import argparse
 import os
-import re
 import sys
 import traceback
 from importlib import resources
 from pathlib import Path
 
-import numpy as np
-
 from . import __version__
-from ._errors import ArgumentError, BackendUnavailableError, FpiwarpError, OutputExistsError, OutputIsFolderError
+from ._errors import BackendUnavailableError, FpiwarpError, OutputExistsError
 from ._fpi import FPI
-from ._local import LocalDeformation
 from ._sampling import MODES, ORDERS
 from ._warp import warp_image
 from .backends import REGISTRY, backend_status
 from .batch import BatchSummary, Progress, list_inputs, run_batch
+from .cli_args import (
+    Parser,
+    UsageError,
+    check_output_path,
+    join_numeric_options,
+    parse_cval,
+    parse_output_shape,
+    transform_from_args,
+)
 from .io import ORIENTATIONS, check_writable, read_image, write_image
 from .metrics import grid
 from .spec import load_spec
@@ -58,82 +62,6 @@ BUG_STATUS = 70
 #: largest distortion K of maps whose K is not one constant.
 K_SAMPLES = 64
 
-#: Options whose value may start with "-" (negative coordinates, a mistyped size).
-_NUMERIC_OPTIONS = ("--src", "--dst", "--edges", "--cval", "--output-shape")
-
-
-class UsageError(Exception):
-    """A wrong command line; argparse's usage text is not repeated."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, not usage + message
-        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
-
-
-def _numbers(text, count, what):
-    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        raise UsageError(f"{what} must be {count} numbers separated by commas, got {text!r}") from None
-    if len(values) != count:
-        raise UsageError(f"{what} must be {count} numbers separated by commas, got {len(values)}")
-    return values
-
-
-def _quad(text, what):
-    return np.array(_numbers(text, 8, what)).reshape(4, 2)
-
-
-def _edges(text):
-    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
-    if len(parts) != 2 or not all(p.isdigit() and int(p) <= 3 for p in parts) or parts[0] == parts[1]:
-        raise UsageError(f"--edges must be two different edge numbers 0..3 like 0,2, got {text!r}")
-    return [int(p) for p in parts]
-
-
-def _cval(text):
-    if text is None:
-        return 0.0
-    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        raise UsageError(f"--cval must be a number or one number per channel, got {text!r}") from None
-    if not values or not all(np.isfinite(values)):
-        raise UsageError(f"--cval must be finite numbers, got {text!r}")
-    return values[0] if len(values) == 1 else values
-
-
-def _output_shape(text):
-    if text is None:
-        return None
-    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text)
-    if not m or int(m.group(1)) == 0 or int(m.group(2)) == 0:
-        raise UsageError(f"--output-shape must be WIDTHxHEIGHT in pixels like 1920x1080, got {text!r}")
-    return int(m.group(2)), int(m.group(1))  # (rows, cols), the API's order
-
-
-def _transform_from_args(args):
-    if args.spec is not None:
-        if args.src is not None or args.dst is not None or args.edges is not None:
-            raise UsageError("give either --spec or --src/--dst/--edges, not both")
-        return load_spec(args.spec)
-    if args.src is None or args.dst is None:
-        raise UsageError("give --src and --dst (eight numbers each), or --spec SPEC.json")
-    src, dst = _quad(args.src, "--src"), _quad(args.dst, "--dst")
-    if args.edges is None:
-        return FPI(src, dst)
-    edges = tuple(_edges(args.edges))
-    try:
-        return LocalDeformation(src, dst, edges=edges)
-    except FpiwarpError:
-        raise
-    except ValueError as exc:  # the local deformation's own checks of the quads
-        raise ArgumentError(f"--src/--dst/--edges: {exc}") from None
-
-
 def _distortion_line(transform, image):
     """'K = ...' for ``warp``: the map's constant K, else its largest K
     over the input image (a K_SAMPLES x K_SAMPLES grid)."""
@@ -145,29 +73,9 @@ def _distortion_line(transform, image):
     return f"K = {worst:.4f} (largest over the input image)"
 
 
-def _same_file(a, b):
-    try:
-        return Path(a).resolve() == Path(b).resolve() or (Path(b).exists() and os.path.samefile(a, b))
-    except OSError:
-        return False
-
-
-def _check_output(input_path, output, overwrite):
-    if input_path is not None and _same_file(input_path, output):
-        raise UsageError(f"the output {output} is the input file; inputs are never modified, choose another name")
-    if Path(output).is_dir():
-        raise OutputIsFolderError(output)
-    if not overwrite and Path(output).exists():
-        raise OutputExistsError(output)
-
-
-# --------------------------------------------------------------------------
-# Commands
-
-
 def cmd_demo(args):
     """Warp the bundled sample picture and say where it went and its K."""
-    _check_output(None, args.output, args.overwrite)
+    check_output_path(None, args.output, args.overwrite)
     with resources.as_file(resources.files("fpiwarp.data").joinpath("sample.png")) as sample:
         image, info = read_image(sample)
     h, w = image.shape[:2]
@@ -183,16 +91,17 @@ def cmd_demo(args):
 
 def cmd_warp(args):
     """Warp one image file."""
-    transform = _transform_from_args(args)
-    output_shape = _output_shape(args.output_shape)
-    cval = _cval(args.cval)
+    transform = transform_from_args(args)
+    output_shape = parse_output_shape(args.output_shape)
+    cval = parse_cval(args.cval)
     if not Path(args.input).exists():
         raise FileNotFoundError(f"no such file: {args.input}")
-    _check_output(args.input, args.output, args.overwrite)
+    check_output_path(args.input, args.output, args.overwrite)
     image, info = read_image(args.input, orientation=args.orientation)
     check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
     warped = warp_image(
-        image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend
+        image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend,
+        antialias=args.antialias,
     )
     write_image(args.output, warped, info, overwrite=args.overwrite)
     print(f"wrote {args.output}")
@@ -203,8 +112,8 @@ def cmd_warp(args):
 def cmd_batch(args):
     """Warp a folder; summary at the end, status 1 if any file failed."""
     transform = load_spec(args.spec)
-    output_shape = _output_shape(args.output_shape)
-    cval = _cval(args.cval)
+    output_shape = parse_output_shape(args.output_shape)
+    cval = parse_cval(args.cval)
     if args.jobs < 1:
         raise UsageError(f"--jobs must be at least 1, got {args.jobs}")
     total = len(list_inputs(args.input_dir, args.pattern, exclude=args.output_dir))
@@ -222,6 +131,7 @@ def cmd_batch(args):
             order=args.order,
             mode=args.mode,
             cval=cval,
+            antialias=args.antialias,
             output_shape=output_shape,
             progress=progress,
             scheduler=args.scheduler,
@@ -269,7 +179,7 @@ def _preview_transform(args, image):
         if args.dst is None and args.edges is None:
             return FPI(corners, corners)
         args.src = ",".join(str(v) for p in corners for v in p)
-    return _transform_from_args(args)
+    return transform_from_args(args)
 
 
 def cmd_preview(args):
@@ -277,7 +187,7 @@ def cmd_preview(args):
     if not Path(args.input).exists():
         raise FileNotFoundError(f"no such file: {args.input}")
     if args.screenshot is not None:
-        _check_output(args.input, args.screenshot, args.overwrite)
+        check_output_path(args.input, args.screenshot, args.overwrite)
     image, info = read_image(args.input, orientation=args.orientation)
     transform = _preview_transform(args, image)
     overlays = () if args.no_overlay else ("handles", "outline")
@@ -311,6 +221,9 @@ def _add_warp_options(p):
     p.add_argument("--backend", default="numpy", help="backend name (see 'fpiwarp backends'); default numpy")
     p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
     p.add_argument("--mode", choices=MODES, default="constant", help="border mode (default constant)")
+    p.add_argument("--antialias", action="store_true",
+                   help="filter each output pixel over its footprint in the source: no moire where the warp "
+                   "shrinks, unchanged where it does not (numpy and opencl backends)")
     p.add_argument("--cval", help="value outside the image in constant mode: V or V1,V2,... per channel")
     p.add_argument(
         "--output-shape",
@@ -333,13 +246,13 @@ def _add_orientation_option(p):
 
 
 def build_parser():
-    parser = _Parser(
+    parser = Parser(
         prog="fpiwarp",
         description="Quasiconformal 4-point image warps (Lipman, Kim, Funkhouser 2012). "
         "Coordinates are pixels: x = column, y = row, pixel centers at integers.",
     )
     parser.add_argument("--version", action="version", version=f"fpiwarp {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
 
     p = sub.add_parser("demo", help="warp the bundled sample picture", description=cmd_demo.__doc__)
     p.add_argument("output", nargs="?", default=DEMO_OUTPUT, help=f"output file (default {DEMO_OUTPUT})")
@@ -406,20 +319,6 @@ def build_parser():
     return parser
 
 
-def _join_numeric_options(argv):
-    """'--src -3,4,...' -> '--src=-3,4,...': argparse would take a value
-    starting with '-' for an option."""
-    out, i = [], 0
-    while i < len(argv):
-        if argv[i] in _NUMERIC_OPTIONS and i + 1 < len(argv):
-            out.append(f"{argv[i]}={argv[i + 1]}")
-            i += 2
-        else:
-            out.append(argv[i])
-            i += 1
-    return out
-
-
 def _message(exc):
     if isinstance(exc, OutputExistsError):
         return f"{exc.filename} already exists; pass --overwrite to replace it"
@@ -434,7 +333,7 @@ USER_ERRORS = (FpiwarpError, OSError)
 
 def main(argv=None):
     """Run the command line; return the exit status."""
-    argv = _join_numeric_options(list(sys.argv[1:] if argv is None else argv))
+    argv = join_numeric_options(list(sys.argv[1:] if argv is None else argv))
     try:
         args = build_parser().parse_args(argv)
         if args.command is None:

@@ -33,6 +33,7 @@ from ._transform import Transform
 __all__ = [
     "CVAL_LIMIT",
     "WarpArguments",
+    "check_antialias",
     "check_backend_options",
     "check_cval",
     "check_image",
@@ -271,6 +272,18 @@ def check_backend_options(options, capabilities, backend, order, mode):
     return checked
 
 
+def check_antialias(antialias, capabilities, backend):
+    """``antialias`` must be a bool (numpy's too) that the backend supports
+    when true (its capabilities' ``antialias``); returns a Python bool."""
+    if isinstance(antialias, np.bool_):
+        antialias = bool(antialias)
+    if not isinstance(antialias, bool):
+        raise ArgumentTypeError(f"antialias must be True or False, got {type(antialias).__name__} {antialias!r}")
+    if antialias and not capabilities.antialias:
+        raise ArgumentError(f"the {backend} backend does not antialias yet; use antialias=False or another backend")
+    return antialias
+
+
 @dataclass(frozen=True)
 class WarpArguments:
     """The arguments of one warp, checked and normalized: what a backend's
@@ -293,9 +306,11 @@ def check_warp_options(transform, order, mode):
 
 
 def check_warp_arguments(image, transform, output_shape, order, mode, cval, capabilities, backend,
-                         backend_options=None):
+                         backend_options=None, antialias=False):
     """Check everything :func:`fpiwarp.warp_image` takes against the
-    backend's ``capabilities``; return :class:`WarpArguments`."""
+    backend's ``capabilities``; return :class:`WarpArguments` (whose
+    ``options`` hold ``antialias=True`` when it is asked for, nothing when
+    not, so that a backend without antialiasing never sees it)."""
     order, mode = check_warp_options(transform, order, mode)
     img, squeeze = check_image(image)
     cval = check_cval(cval, img.shape[2], img.dtype)
@@ -303,6 +318,8 @@ def check_warp_arguments(image, transform, output_shape, order, mode, cval, capa
     if img.dtype not in capabilities.dtypes or order not in capabilities.orders or mode not in capabilities.modes:
         raise ArgumentError(f"the {backend} backend cannot warp {img.dtype} images at order {order} in mode {mode!r}")
     options = check_backend_options(backend_options, capabilities, backend, order, mode)
+    if check_antialias(antialias, capabilities, backend):
+        options["antialias"] = True
     check_sizes(img.shape, shape, img.dtype, capabilities, backend)
     check_map_size(transform.inverse, capabilities, backend)  # the kernels evaluate the inverse
     return WarpArguments(np.ascontiguousarray(img), squeeze, shape, order, mode, cval, options)

@@ -11,6 +11,7 @@ from ._errors import ArgumentError
 from .backends import backend_capabilities, get_backend
 from .backends.protocol import bind
 from .validation import (
+    check_antialias,
     check_backend_options,
     check_output_shape,
     check_sizes,
@@ -32,12 +33,13 @@ class Warper:
     """
 
     def __init__(self, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
-                 backend_options=None):
+                 backend_options=None, antialias=False):
         caps = backend_capabilities(backend)
         order, mode = check_warp_options(transform, order, mode)
         if np.ndim(cval) > 1:
             raise ArgumentError(f"cval must be a number or one per channel, got {cval!r}")
         self.options = check_backend_options(backend_options, caps, backend, order, mode)
+        self.antialias = check_antialias(antialias, caps, backend)
         if output_shape is not None:  # refuse a huge output before the first image is read
             check_sizes((1, 1, 1), check_output_shape(output_shape, None), np.uint8, caps, backend)
         get_backend(backend)  # fail now if unavailable
@@ -60,7 +62,7 @@ class Warper:
 
     def __call__(self, image):
         args = check_warp_arguments(image, self.transform, self.output_shape, self.order, self.mode, self.cval,
-                                    self.capabilities, self.backend, self.options)
+                                    self.capabilities, self.backend, self.options, self.antialias)
         out = self.bound.warp_image(args.image, args.output_shape, order=args.order, mode=args.mode, cval=args.cval,
                                     **args.options)
         return out[:, :, 0] if args.squeeze else out

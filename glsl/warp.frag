@@ -22,6 +22,10 @@ void main() {
     fpw_emit(fpw_cval);
 #else
     vec2 xy = fpw_view.xy + fpw_view.zw * (gl_FragCoord.xy - 0.5);
+#ifdef FPW_ANTIALIAS
+    fpw_emit(fpw_sample_antialiased(xy));
+#else
     fpw_emit(fpw_sample(fpw_map(xy)));
+#endif
 #endif
 }

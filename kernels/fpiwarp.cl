@@ -92,3 +92,94 @@ void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int 
     FW_EACH_LANE(FW_STORE_LANE, _)
 }
 #endif
+
+#if defined(FW_T) && defined(FW_AA)
+/* _antialias.tap_counts: sub-samples along a footprint edge of length
+ * len (source pixels), as a float in 1..FW_AA_MAX_TAPS; NaN gives 1 */
+FW_FN fw_fv fw_aa_count(fw_fv len)
+{
+    fw_fv n = clamp(ceil(len - FW_AA_SLACK), 1.0f, (float)FW_AA_MAX_TAPS);
+    return select(n, (fw_fv)1.0f, isnan(len));
+}
+
+/* the largest lane of v */
+FW_FN float fw_aa_lanes_max(fw_fv v)
+{
+    float m = 1.0f;
+#define FW_AA_MAX_LANE(k, _) m = max(m, FW_LANE(v, k));
+    FW_EACH_LANE(FW_AA_MAX_LANE, _)
+#undef FW_AA_MAX_LANE
+    return m;
+}
+
+/* warp_image with antialiasing (fpiwarp/_antialias.py): each pixel the
+ * box average of nx x ny sub-samples of its footprint, the parallelogram
+ * spanned by the inverse map's Jacobian columns ex, ey at the pixel; nx,
+ * ny from the edges' lengths (fw_aa_count). Same work-groups and phases as
+ * warp_image: the map and its derivatives per pixel into local memory,
+ * then the sampling, FW_VN pixels per work-item, looping over the largest
+ * counts of its lanes (lanes with fewer sub-samples skip the extra ones). */
+__kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
+void warp_image_aa(fw_block_t block, __global const FW_T *restrict src, int w, int h,
+                   __global FW_T *restrict dst, int ow, int oh, float4 cval)
+{
+    __local float pos_x[FW_LOCAL_X], pos_y[FW_LOCAL_X];
+    __local float exx[FW_LOCAL_X], exy[FW_LOCAL_X], eyx[FW_LOCAL_X], eyy[FW_LOCAL_X];
+    int l = get_local_id(0), oy = get_global_id(1);
+    int gx0 = get_group_id(0) * FW_LOCAL_X; /* the group's first pixel */
+    /* the position exactly as warp_image computes it (so that a magnified
+     * pixel is bit for bit the plain one), the derivatives beside it */
+    fw_c z = fw_cx((float)min(gx0 + l, ow - 1), (float)oy), dz, dzb;
+    fw_c s = fw_map(block, z);
+    fw_map_wirtinger(block, z, &dz, &dzb);
+    pos_x[l] = s.re;
+    pos_y[l] = s.im;
+    /* ex = f_z + f_zbar, ey = i (f_z - f_zbar): the Jacobian's columns */
+    exx[l] = dz.re + dzb.re;
+    exy[l] = dz.im + dzb.im;
+    eyx[l] = dzb.im - dz.im;
+    eyy[l] = dz.re - dzb.re;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    /* work-items whose pixels all lie past the row's end (padding) write
+     * nothing: their sub-samples would only redo the row's last pixel */
+    if (l >= FW_LOCAL_X / FW_VN || gx0 + FW_VN * l >= ow)
+        return;
+    int at0 = FW_VN * l;
+    fw_fv sx = FW_VLOAD(pos_x + at0), sy = FW_VLOAD(pos_y + at0);
+    fw_fv ax = FW_VLOAD(exx + at0), ay = FW_VLOAD(exy + at0);
+    fw_fv bx = FW_VLOAD(eyx + at0), by = FW_VLOAD(eyy + at0);
+    fw_fv nx = fw_aa_count(sqrt(ax * ax + ay * ay)), ny = fw_aa_count(sqrt(bx * bx + by * by));
+    fw_pxv v = fw_sample(src, w, h, sx, sy, cval);
+    float mx = fw_aa_lanes_max(nx), my = fw_aa_lanes_max(ny);
+    if (mx > 1.0f || my > 1.0f) {
+        fw_fv acc0 = 0.0f, acc1 = 0.0f, acc2 = 0.0f, acc3 = 0.0f;
+        for (float j = 0.0f; j < my; j += 1.0f) {
+            fw_fv t = (2.0f * j + 1.0f - ny) / (2.0f * ny);
+            for (float i = 0.0f; i < mx; i += 1.0f) {
+                fw_fv sub = (2.0f * i + 1.0f - nx) / (2.0f * nx);
+                fw_iv live = ((fw_fv)i < nx) & ((fw_fv)j < ny);
+                fw_pxv u = fw_sample(src, w, h, sx + (ax * sub + bx * t), sy + (ay * sub + by * t), cval);
+#define FW_AA_ADD(k, _) acc##k += select((fw_fv)0.0f, u.c##k, live);
+                FW_EACH_C(FW_AA_ADD, _)
+#undef FW_AA_ADD
+            }
+        }
+        fw_iv multi = (nx > 1.0f) | (ny > 1.0f);
+        fw_iv finite = (fabs(sx) <= FW_COORD_LIMIT) & (fabs(sy) <= FW_COORD_LIMIT);
+        fw_fv inv = 1.0f / (nx * ny);
+#define FW_AA_PICK(k, _) v.c##k = select(v.c##k, select((fw_fv)cval.s##k, acc##k * inv, finite), multi);
+        FW_EACH_C(FW_AA_PICK, _)
+#undef FW_AA_PICK
+    }
+#define FW_RESULT(k, _) fw_ov res##k = FW_TO_DTYPE(v.c##k);
+    FW_EACH_C(FW_RESULT, _)
+    int row = oy * ow;
+#define FW_STORE_C(k, lane) dst[at + k] = (FW_T)FW_LANE(res##k, lane);
+#define FW_STORE_LANE(lane, _)                                      \
+    {                                                               \
+        int at = (row + min(gx0 + FW_VN * l + lane, ow - 1)) * FW_C; \
+        FW_EACH_C(FW_STORE_C, lane)                                 \
+    }
+    FW_EACH_LANE(FW_STORE_LANE, _)
+}
+#endif

@@ -253,6 +253,110 @@ FW_FN fw_c fw_map(fw_block_t block, fw_c z)
     return z;
 }
 
+/* ---- derivatives of the block (fpiwarp/block/jacobian.py) -------------- */
+/* Only programs built with FW_AA (antialiased warp_image) compile these:
+ * the block's values and Wirtinger derivatives (f_z, f_zbar), chained
+ * stage after stage; see jacobian.py for each part's derivative. */
+#ifdef FW_AA
+/* (g o f)_z and (g o f)_zbar from g's derivatives (gw, gwb) and f's (*dz, *dzb) */
+FW_FN void fw_chain(fw_c gw, fw_c gwb, fw_c *dz, fw_c *dzb)
+{
+    fw_c a = fw_add(fw_mul(gw, *dz), fw_mul(gwb, fw_conj(*dzb)));
+    fw_c b = fw_add(fw_mul(gw, *dzb), fw_mul(gwb, fw_conj(*dz)));
+    *dz = a;
+    *dzb = b;
+}
+
+/* jacobian.stage_wirtinger: fw_stage_kind with derivatives chained into *dz, *dzb */
+FW_FN fw_c fw_stage_wirtinger_kind(fw_rows_t rows, fw_c z, fw_c *dz, fw_c *dzb, int core, int n, int n_regions,
+                                   int iters)
+{
+    float best = 0.0f;
+    fw_c outside = fw_cx(NAN, NAN), outside_dz = fw_cx(NAN, NAN);
+    /* for r < n_regions, written out for FW_MAX_REGIONS (2) regions as in fw_stage_kind;
+     * a region that wins (raises best) brings its similarity's derivative a */
+#define FW_REGION_W(r)                                                                                  \
+    if (n_regions > r) {                                                                                \
+        float was = best;                                                                               \
+        fw_region(rows, r, z, &best, &outside);                                                         \
+        outside_dz = fw_select(best > was, fw_at(rows, FW_ROW_REGIONS + 2 * r + 1, 0), outside_dz);    \
+    }
+    FW_REGION_W(0)
+    FW_REGION_W(1)
+#undef FW_REGION_W
+    fw_c u = fw_sub(z, fw_at(rows, FW_ROW_PRE, 0));
+    fw_c den = fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_PRE, 2), u));
+    fw_c k1 = fw_at(rows, FW_ROW_SCALE, 0);
+    fw_c p = fw_div(fw_mul(k1, u), den);
+    fw_c sdz = fw_div(k1, fw_mul(den, den)), sdzb = fw_cx(0.0f, 0.0f);
+    fw_c gz, gzb;
+    if (core == FW_CORE_AFFINE) {
+        fw_c l1 = fw_at(rows, FW_ROW_L12, 0), l2 = fw_at(rows, FW_ROW_L12, 2);
+        p = fw_rlinear(p, l1, l2, fw_at(rows, FW_ROW_L3, 0));
+        fw_chain(l1, l2, &sdz, &sdzb);
+    } else if (core == FW_CORE_TPS) {
+        p = fw_tps(p, rows, n, &gz, &gzb);
+        fw_chain(gz, gzb, &sdz, &sdzb);
+    } else if (core == FW_CORE_TPS_INVERSE) {
+        p = fw_newton(p, rows, n, iters, rows[4 * FW_ROW_L3 + 2]);
+        fw_tps(p, rows, n, &gz, &gzb);
+        float det = fw_abs2(gz) - fw_abs2(gzb);
+        fw_chain(fw_scale(fw_conj(gz), 1.0f / det), fw_scale(gzb, -1.0f / det), &sdz, &sdzb);
+    } else {
+        p = fw_cx(NAN, NAN);
+    }
+    fw_c den2 = fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_POST, 0), p));
+    fw_c k2 = fw_at(rows, FW_ROW_SCALE, 2);
+    fw_c w = fw_add(fw_at(rows, FW_ROW_POST, 2), fw_div(fw_mul(k2, p), den2));
+    fw_c g = fw_div(k2, fw_mul(den2, den2));
+    sdz = fw_mul(g, sdz);
+    sdzb = fw_mul(g, sdzb);
+    bool in_region = best > 0.0f;
+    fw_chain(fw_select(in_region, outside_dz, sdz), fw_select(in_region, fw_cx(0.0f, 0.0f), sdzb), dz, dzb);
+    return fw_select(in_region, outside, w);
+}
+
+/* jacobian.wirtinger: fw_map with the derivatives (f_z, f_zbar) in *dz, *dzb */
+FW_FN fw_c fw_map_wirtinger(fw_block_t block, fw_c z, fw_c *dz, fw_c *dzb)
+{
+    *dz = fw_cx(1.0f, 0.0f);
+    *dzb = fw_cx(0.0f, 0.0f);
+#ifdef FW_KIND_0
+#define FW_APPLY_W(k, kind) z = fw_stage_wirtinger_kind(fw_stage_rows(block, k), z, dz, dzb, kind)
+    FW_APPLY_W(0, FW_KIND_0);
+#ifdef FW_KIND_1
+    FW_APPLY_W(1, FW_KIND_1);
+#endif
+#ifdef FW_KIND_2
+    FW_APPLY_W(2, FW_KIND_2);
+#endif
+#ifdef FW_KIND_3
+    FW_APPLY_W(3, FW_KIND_3);
+#endif
+#ifdef FW_KIND_4
+    FW_APPLY_W(4, FW_KIND_4);
+#endif
+#ifdef FW_KIND_5
+    FW_APPLY_W(5, FW_KIND_5);
+#endif
+#ifdef FW_KIND_6
+    FW_APPLY_W(6, FW_KIND_6);
+#endif
+#ifdef FW_KIND_7
+    FW_APPLY_W(7, FW_KIND_7);
+#endif
+#undef FW_APPLY_W
+#else
+    int n_stages = (int)block[0].x;
+    for (int k = 0; k < n_stages; ++k) {
+        fw_rows_t rows = fw_stage_rows(block, k);
+        z = fw_stage_wirtinger_kind(rows, z, dz, dzb, (int)rows[0], (int)rows[1], (int)rows[2], (int)rows[3]);
+    }
+#endif
+    return z;
+}
+#endif /* FW_AA */
+
 /* ---- sampling (fpiwarp/_sampling.py) ------------------------------------ */
 /* FW_MODE_* and FW_COORD_LIMIT (source positions beyond it in x or y, or
  * not finite, are outside) come with the generated contract. */

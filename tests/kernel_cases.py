@@ -12,6 +12,7 @@ import numpy as np
 from fpiwarp import FPI, Mobius, RLinear, Transform
 from fpiwarp.backends import numpy_backend
 from fpiwarp.block import CORE_TPS, CORE_TPS_INVERSE, LinearPart, Region, Stage, evaluate
+from fpiwarp.block.jacobian import wirtinger
 
 RTOL = 1e-5
 PIXEL_FRACTION = 0.998
@@ -35,6 +36,10 @@ class Staged(Transform):
     def map_complex(self, z):
         out = evaluate(self.params(), np.stack([z.real, z.imag], axis=-1), np.float64)
         return out[..., 0] + 1j * out[..., 1]
+
+    def wirtinger(self, z):
+        out, fz, fzb = wirtinger(self.params(), np.stack([z.real, z.imag], axis=-1), np.float64)
+        return out[..., 0] + 1j * out[..., 1], fz, fzb
 
     @property
     def inverse(self):

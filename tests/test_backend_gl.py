@@ -597,3 +597,16 @@ def test_unknown_core_is_refused_by_the_host_and_outside_in_the_shader(gl_backen
     fake = BlockKind(stages=(StageKind(7, 0, 0, 0),), is_short=False, constant_dilation=None)
     monkeypatch.setattr(gl_warper, "describe", lambda b: fake)  # a host without the check
     assert np.isnan(glb.GLWarper(glb.shared_context(), specialize=False).map_points(RawBlock(), pts)).all()
+
+
+@pytest.mark.parametrize("mode", ["constant", "wrap"])
+def test_antialiased_warp_of_a_tiled_source_matches_the_reference(gl_small, mode):
+    """Antialiasing is linear in the taps: summing source tiles still gives
+    the reference's footprint averages."""
+    img = make_image((48, 64, 3), np.uint8, seed=5)
+    shrink = RLinear(0.35 + 0.08j, 0.06j, 2 + 1j) @ sample_fpi()
+    want = fpiwarp.warp_image(img, shrink, (30, 40), mode=mode, cval=[10, 20, 30], antialias=True)
+    got = gl_small.warp_image(img, shrink, (30, 40), order=1, mode=mode, cval=np.array([10.0, 20.0, 30.0]),
+                              antialias=True)
+    assert_images_agree(got, want, np.uint8)
+    _check_gl(gl_small.ctx)

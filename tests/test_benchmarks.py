@@ -240,6 +240,9 @@ def test_quick_run_writes_every_output(quick_run):
         "quality.md",
         "quality.json",
         "quality_fig8.png",
+        "antialias.md",
+        "antialias.json",
+        "antialias_crops.png",
     }
     assert expected <= names
     assert not any(n.endswith(".tmp") for n in names)
@@ -282,3 +285,18 @@ def test_quick_run_quality_table_has_constant_fpi_dilation(quick_run):
         assert all(fpi["max_dilation"] <= d + 1e-9 for d in others)  # as in the paper's table
     md = (quick_run / "quality.md").read_text()
     assert "| FPI |" in md and "| MLS-SIM |" in md
+
+
+def test_quick_run_antialias_section_is_well_formed(quick_run):
+    data = json.loads((quick_run / "antialias.json").read_text())
+    assert data["reference_subsamples"] >= 8
+    kinds = {row["kind"] for row in data["psnr_db"]}
+    assert {"uniform", "fpi", "aniso", "identity", "magnify"} <= kinds
+    for row in data["psnr_db"]:
+        plain, smooth = row["fpiwarp order 1"], row["fpiwarp order 1 antialias"]
+        if row["kind"] in ("identity", "magnify"):
+            assert smooth == plain  # antialiasing changes nothing where nothing shrinks
+        elif row["kind"] in ("fpi", "aniso"):
+            assert smooth > plain + 3
+    assert {r["backend"] for r in data["cost"]} >= {"numpy"}
+    assert "## Cost" in (quick_run / "antialias.md").read_text()

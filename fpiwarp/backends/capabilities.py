@@ -3,8 +3,10 @@
 A :class:`Capabilities` record says which dtypes, orders and border modes
 a backend samples, how large a call may be, how many map stages its
 kernels evaluate, which extra options it takes (:class:`BackendOption`),
-whether it warps a stack in one call (``batches``) and whether it may be
-called from several threads at once (``thread_safe``). The registry in
+whether it warps a stack in one call (``batches``), whether it may be
+called from several threads at once (``thread_safe``) and whether it
+antialiases (``antialias``: ``warp_image(..., antialias=True)``, see
+:mod:`fpiwarp._antialias`). The registry in
 :mod:`fpiwarp.backends` holds one record per backend, and
 :mod:`fpiwarp.validation` checks every call against it before the
 backend runs, so a call a backend cannot do fails with one line instead
@@ -57,18 +59,20 @@ class Capabilities:
     options: tuple = field(default_factory=tuple)
     batches: bool = False
     thread_safe: bool = False
+    antialias: bool = False
 
     def option(self, name):
         """The :class:`BackendOption` called ``name``, or None."""
         return next((opt for opt in self.options if opt.name == name), None)
 
 
-NUMPY = Capabilities(batches=True, thread_safe=True)
-OPENCL = Capabilities(max_side=MAX_DEVICE_SIDE, max_points=MAX_OPENCL_POINTS, max_stages=MAX_STAGES)
-WARP = Capabilities(max_side=MAX_DEVICE_SIDE, max_stages=MAX_STAGES)
+NUMPY = Capabilities(batches=True, thread_safe=True, antialias=True)
+OPENCL = Capabilities(max_side=MAX_DEVICE_SIDE, max_points=MAX_OPENCL_POINTS, max_stages=MAX_STAGES, antialias=True)
+WARP = Capabilities(max_side=MAX_DEVICE_SIDE, max_stages=MAX_STAGES, antialias=True)
 GL = Capabilities(
     max_side=MAX_DEVICE_SIDE,
     max_stages=MAX_STAGES,
+    antialias=True,
     options=(
         BackendOption(
             "hardware_filter",

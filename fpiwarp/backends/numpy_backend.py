@@ -13,6 +13,7 @@ import threading
 
 import numpy as np
 
+from .._antialias import iter_footprints, sample_antialiased
 from .._sampling import sample, to_dtype
 from ..positions import CHUNK_PIXELS, iter_source_positions, source_positions
 
@@ -32,6 +33,16 @@ def sample_bands(image, bands, output_shape, order, mode, cval):
     for r0, r1, pos in bands:
         values = sample(image, pos[..., 0], pos[..., 1], order, mode, cval)
         out[r0:r1] = to_dtype(values, image.dtype)
+    return out
+
+
+def sample_footprints(image, bands, output_shape, order, mode, cval):
+    """Like :func:`sample_bands` with antialiasing: (row_start, row_stop,
+    positions, ex, ey) bands (see :mod:`fpiwarp._antialias`)."""
+    oh, ow = output_shape
+    out = np.empty((oh, ow, image.shape[2]), dtype=image.dtype)
+    for r0, r1, pos, ex, ey in bands:
+        out[r0:r1] = to_dtype(sample_antialiased(image, pos, ex, ey, order, mode, cval), image.dtype)
     return out
 
 
@@ -68,8 +79,12 @@ class BoundMap:
                 self._positions.popitem(last=False)
         return pos
 
-    def warp_image(self, image, output_shape, *, order, mode, cval):
-        """Like :meth:`Backend.warp_image` with this map."""
+    def warp_image(self, image, output_shape, *, order, mode, cval, antialias=False):
+        """Like :meth:`Backend.warp_image` with this map (antialiased warps
+        are not cached: their footprints are evaluated per call)."""
+        if antialias:
+            return sample_footprints(image, iter_footprints(self.transform, output_shape), output_shape, order, mode,
+                                     cval)
         return sample_bands(image, _bands_of(self.positions(output_shape)), output_shape, order, mode, cval)
 
 
@@ -81,7 +96,9 @@ class Backend:
     def map_points(self, transform, points):
         return transform(points)
 
-    def warp_image(self, image, transform, output_shape, *, order, mode, cval):
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval, antialias=False):
+        if antialias:
+            return sample_footprints(image, iter_footprints(transform, output_shape), output_shape, order, mode, cval)
         bands = iter_source_positions(transform, output_shape)
         return sample_bands(image, bands, output_shape, order, mode, cval)
 
@@ -89,16 +106,17 @@ class Backend:
         """A :class:`BoundMap`: ``transform`` ready to warp many images."""
         return BoundMap(transform)
 
-    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval):
+    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False):
         """Warp a validated (N, H, W, C) stack; ``transforms`` holds one map
         for all images or one per image. One map: all N images are sampled
         in one pass over it, as one (H, W, N·C) image."""
         n, h, w, c = stack.shape
         if len(transforms) == 1:
             wide = np.ascontiguousarray(stack.transpose(1, 2, 0, 3)).reshape(h, w, n * c)
-            flat = self.warp_image(wide, transforms[0], output_shape, order=order, mode=mode, cval=np.tile(cval, n))
+            flat = self.warp_image(wide, transforms[0], output_shape, order=order, mode=mode, cval=np.tile(cval, n),
+                                   antialias=antialias)
             return flat.reshape(output_shape[0], output_shape[1], n, c).transpose(2, 0, 1, 3)
         return np.stack([
-            self.warp_image(image, t, output_shape, order=order, mode=mode, cval=cval)
+            self.warp_image(image, t, output_shape, order=order, mode=mode, cval=cval, antialias=antialias)
             for image, t in zip(stack, transforms, strict=True)
         ])

@@ -277,19 +277,19 @@ class Backend:
             self._cl.enqueue_copy(self.queue, out, dst)
         self.queue.finish()
 
-    def warp_image(self, image, transform, output_shape, *, order, mode, cval):
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval, antialias=False):
         with self._lock:
-            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval)
+            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval, antialias=antialias)
             job.set_map(transform)
             job.launch()
             return job.read()
 
-    def prepare_warp(self, image, output_shape, *, order, mode, cval):
+    def prepare_warp(self, image, output_shape, *, order, mode, cval, antialias=False):
         """A :class:`DeviceWarp`: ``image`` uploaded and the output allocated
         on the device, ready to warp by one map after another with the
         kernel alone (what :meth:`warp_image` does once; benchmarks time
         its steps). Arguments as :meth:`warp_image` receives them."""
-        return DeviceWarp(self, image, output_shape, order, mode, cval)
+        return DeviceWarp(self, image, output_shape, order, mode, cval, antialias)
 
 
 class DeviceWarp:
@@ -299,7 +299,7 @@ class DeviceWarp:
     next call on the backend; use it from one thread.
     """
 
-    def __init__(self, backend, image, output_shape, order, mode, cval):
+    def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False):
         be, cl = backend, backend._cl
         h, w, c = image.shape
         oh, ow = output_shape
@@ -312,6 +312,10 @@ class DeviceWarp:
         fits = [x for x in NARROW_LOCAL_X if ow <= x < be.local_x and x % be.lanes == 0]
         self.local_x = fits[0] if fits else be.local_x
         self._sampling += (f"-DFW_LOCAL_X={self.local_x}", f"-DFW_VN={be.lanes}")
+        #: antialiased programs (FW_AA) have the kernel warp_image_aa besides warp_image
+        self._kernel_name = "warp_image_aa" if antialias else "warp_image"
+        if antialias:
+            self._sampling += ("-DFW_AA=1",)
         self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
         cl.enqueue_copy(be.queue, self._src, image)
         self._zero_copy = be.zero_copy and self.out.nbytes >= ZERO_COPY_MIN_BYTES
@@ -328,7 +332,7 @@ class DeviceWarp:
         be = self.backend
         (h, w, _), (oh, ow) = self.image_shape, self.output_shape
         block, kind = be._upload_block(transform.inverse)
-        kern = be.kernel("warp_image", kind + self._sampling)
+        kern = be.kernel(self._kernel_name, kind + self._sampling)
         kern.set_args(block, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), self._cval4)
         self._kernel = kern
 

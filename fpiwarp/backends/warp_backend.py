@@ -171,6 +171,7 @@ class Backend:
         self._block_staging = self._block if self._on_cpu else wp.zeros_like(self._block, device="cpu", pinned=True)
         self._block_host = self._block_staging.numpy()  # a (rows, 4) float32 view of host memory
         self._buffers = {}
+        self._aa_loaded = False  # the antialiased kernels' module, loaded on first use
 
     def __repr__(self):
         return f"<fpiwarp warp backend on {self.device}, {self.threads} thread(s)>"
@@ -246,20 +247,30 @@ class Backend:
                 result = out.numpy()
         return result.reshape(shape)
 
-    def warp_image(self, image, transform, output_shape, *, order, mode, cval):
-        """Backward warp: each output pixel samples the source at ``transform.inverse``."""
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval, antialias=False):
+        """Backward warp: each output pixel samples the source at ``transform.inverse``
+        (antialiased: averaged over its footprint, see fpiwarp._antialias)."""
         with self._lock:
-            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval)
+            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval, antialias=antialias)
             job.set_map(transform)
             job.launch()
             return job.read()
 
-    def prepare_warp(self, image, output_shape, *, order, mode, cval):
+    def antialias_kernels(self):
+        """The module of antialiased kernels, loaded on first use."""
+        from fpiwarp.kernels import warp_antialias  # noqa: PLC0415 - compiled only when asked for
+
+        if not self._aa_loaded:
+            self._wp.load_module(warp_antialias, device=self.device)
+            self._aa_loaded = True
+        return warp_antialias
+
+    def prepare_warp(self, image, output_shape, *, order, mode, cval, antialias=False):
         """A :class:`DeviceWarp`: ``image`` on the device (aliased on the
         CPU) and the output allocated, ready to warp by one map after
         another with the kernel alone (what :meth:`warp_image` does once;
         benchmarks time its steps). Arguments as :meth:`warp_image` receives them."""
-        return DeviceWarp(self, image, output_shape, order, mode, cval)
+        return DeviceWarp(self, image, output_shape, order, mode, cval, antialias)
 
 
 class DeviceWarp:
@@ -269,7 +280,7 @@ class DeviceWarp:
     until the next call on the backend; use it from one thread.
     """
 
-    def __init__(self, backend, image, output_shape, order, mode, cval):
+    def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False):
         be = self.backend = backend
         wp = be._wp
         oh, ow = self.output_shape = output_shape
@@ -287,6 +298,9 @@ class DeviceWarp:
             self._out = be._buffer("warped", (oh, ow, channels), scalar)
         self._kernel = be._k.IMAGE_KERNELS[order]
         self._tail = [MODES.index(mode), wp.vec4(*cv.tolist()), _TOP[dtype]]
+        if antialias:  # one kernel for every order, which it takes as an argument
+            self._kernel = be.antialias_kernels().warp_antialias
+            self._tail = [int(order), *self._tail]
         self._block = None
 
     def set_map(self, transform):

@@ -11,7 +11,7 @@ source writes one of these numbers itself (a test checks it).
 """
 
 from . import layout as L
-from .sampling_rules import COORD_LIMIT, MODE_CONSTANT, MODE_EDGE, MODE_REFLECT, MODE_WRAP
+from .sampling_rules import AA_MAX_TAPS, AA_SLACK, COORD_LIMIT, MODE_CONSTANT, MODE_EDGE, MODE_REFLECT, MODE_WRAP
 
 #: Every number of the contract a kernel uses, by name (without prefix).
 KERNEL_CONSTANTS = {
@@ -37,6 +37,8 @@ KERNEL_CONSTANTS = {
     "MODE_REFLECT": MODE_REFLECT,
     "MODE_WRAP": MODE_WRAP,
     "COORD_LIMIT": COORD_LIMIT,
+    "AA_MAX_TAPS": AA_MAX_TAPS,
+    "AA_SLACK": AA_SLACK,
 }
 
 #: The prefix of the contract's names in each C-like language.
@@ -44,10 +46,11 @@ OPENCL_PREFIX, GLSL_PREFIX = "FW_", "FPW_"
 
 
 def _literal(value, float_suffix):
-    """A C literal: ints as they are, floats with one decimal (exact for the
-    powers of two used here) and the language's float suffix."""
+    """A C literal: ints as they are, floats with the shortest repr that
+    reads back exactly (``1.0`` for the powers of two) and the language's
+    float suffix."""
     if isinstance(value, float):
-        return f"{value:.1f}{float_suffix}"
+        return f"{value!r}{float_suffix}"
     return str(int(value))
 
 

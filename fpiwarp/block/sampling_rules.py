@@ -12,3 +12,10 @@ MODE_CONSTANT, MODE_EDGE, MODE_REFLECT, MODE_WRAP = (MODES.index(m) for m in ("c
 ORDERS = (0, 1, 3)
 #: Source positions beyond this many pixels count as "outside" (cval).
 COORD_LIMIT = float(2**24)
+#: Antialiasing: at most this many sub-samples per axis of an output pixel's
+#: footprint (so at most its square per pixel; see fpiwarp._antialias).
+AA_MAX_TAPS = 16
+#: Antialiasing: a footprint axis of length L source pixels gets
+#: ceil(L - AA_SLACK) sub-samples, so that exact shrinks by 1/n (L = n up to
+#: rounding) get n sub-samples in float32 and float64 alike.
+AA_SLACK = 0.01

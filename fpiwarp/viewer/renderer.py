@@ -53,6 +53,7 @@ that made it: call the renderer from that thread, with the context current.
 import moderngl
 import numpy as np
 
+from ..backends.capabilities import GL
 from ..backends.gl import (
     FULLSCREEN,
     GLWarper,
@@ -66,7 +67,7 @@ from ..backends.gl import (
     grid_mesh,
     set_uniform,
 )
-from ..validation import check_cval, check_image
+from ..validation import check_antialias, check_cval, check_image
 from .overlays import OverlayLayer, edge_curves, handle_triangles, outline_triangles
 
 METHODS = ("pixel", "mesh", "auto")
@@ -115,6 +116,10 @@ class Renderer:
         a thin-plate spline, so much faster for local deformations, and
         piecewise linear between grid points); "auto": "pixel" for maps of
         constant dilation (an FPI), "mesh" for the others.
+    antialias : bool
+        Whether :meth:`warp_full` (the full-resolution export) antialiases,
+        as :func:`fpiwarp.warp_image` does with ``antialias=True``. The
+        on-screen preview (:meth:`draw`) is not antialiased.
 
     Notes
     -----
@@ -151,7 +156,8 @@ class Renderer:
     >>> fbo.release(); renderer.release()
     """
 
-    def __init__(self, ctx, *, order=1, mode="constant", cval=0.0, background=None, warper=None, method="pixel"):
+    def __init__(self, ctx, *, order=1, mode="constant", cval=0.0, background=None, warper=None, method="pixel",
+                 antialias=False):
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
         order, mode = check_order_and_mode(order, mode)
@@ -159,6 +165,7 @@ class Renderer:
         self._owns_warper = warper is None
         self.warper = warper if warper is not None else GLWarper(ctx)
         self.order, self.mode = order, mode
+        self.antialias = check_antialias(antialias, GL, "gl")
         self.method = method
         self.mesh_step = None  # source pixels between mesh vertices; default max(2, longer side / 256)
         self._cval = cval
@@ -398,7 +405,8 @@ class Renderer:
         cval = np.broadcast_to(np.asarray(self._cval, np.float64), (self.image.shape[2],))
         try:
             out = self.warper.warp_image(self.image, self.transform, output_shape or self.image.shape[:2],
-                                         order=self.order, mode=self.mode, cval=cval)
+                                         order=self.order, mode=self.mode, cval=cval,
+                                         antialias=self.antialias)
         finally:
             self.set_transform(self.transform, handles=self._points, edges=self.edges)
             previous.use()

@@ -48,10 +48,11 @@ class Backend:
         check_thread()
         return self.warper.map_points(transform, points)
 
-    def warp_image(self, image, transform, output_shape, *, order, mode, cval, hardware_filter=False):
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval, hardware_filter=False,
+                   antialias=False):
         check_thread()
         return self.warper.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
-                                      hardware_filter=hardware_filter)
+                                      hardware_filter=hardware_filter, antialias=antialias)
 
 
 def warp_image_mesh(image, transform, output_shape=None, *, order=1, mode="constant", cval=0,

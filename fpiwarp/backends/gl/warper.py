@@ -192,22 +192,26 @@ class GLWarper:
 
     # ---- per pixel
     def warp_image(self, image, transform, output_shape, *, order=1, mode="constant", cval=None,
-                   hardware_filter=False):
+                   hardware_filter=False, antialias=False):
         """Backward warp of a validated (H, W, C) image (see fpiwarp.warp_image).
 
         ``hardware_filter=True`` lets the texture unit interpolate (orders
         0 and 1, modes constant/edge/wrap): faster, but bilinear weights are
         quantized by the hardware, so results may differ from the reference
         by a level or so. Sources above the size limit use the software path.
+        ``antialias=True`` averages each pixel's footprint (fpiwarp._antialias;
+        software sampling, FPW_ANTIALIAS in glsl/fpiwarp_map.glsl).
         """
         image, cval = check_sampling(image, order, mode, cval)
+        if hardware_filter and antialias:
+            raise ValueError("hardware_filter and antialias cannot be combined: antialiasing samples in software")
         if hardware_filter:
             if order not in (0, 1):
                 raise ValueError(f"hardware_filter supports order 0 or 1, got {order}")
             if mode not in HW_MODES:
                 raise ValueError(f"hardware_filter supports modes {HW_MODES}, got {mode!r}")
         stages = self.set_map(transform.inverse.params())
-        return self._render(image, output_shape, order, mode, cval, None, hardware_filter, stages)
+        return self._render(image, output_shape, order, mode, cval, None, hardware_filter, stages, antialias)
 
     # ---- per vertex, rasterized
     def warp_image_mesh(self, image, transform, output_shape, *, order=1, mode="constant", cval=None,
@@ -233,27 +237,31 @@ class GLWarper:
             mesh.release()
 
     # ---- shared rendering
-    def _render(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages):
+    def _render(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False):
         caller = bound_framebuffer(self.ctx)
         if self.targets.owns(caller):
             caller = None  # ours (perhaps replaced below): nothing to give back
         try:
-            return self._render_bound(image, output_shape, order, mode, cval, mesh, hardware_filter, stages)
+            return self._render_bound(image, output_shape, order, mode, cval, mesh, hardware_filter, stages,
+                                      antialias)
         finally:
             if caller is not None:
                 caller.use()  # a caller drawing into its own framebuffer keeps it bound
 
-    def _program_keys(self, image, order, mode, mesh, hw, tiled, stages):
+    def _program_keys(self, image, order, mode, mesh, hw, tiled, stages, antialias=False):
         """(key of the warp or mesh program, key of the mesh's fill pass or
-        None, whether the warp program packs its RGB pixels)."""
+        None, whether the warp program packs its RGB pixels). Antialiased
+        programs (FPW_ANTIALIAS) neither gather nor pack."""
         c = image.shape[2]
-        gather = self.gather and not (hw or tiled) and mesh is None and order == 1 and mode in HW_MODES
+        gather = (self.gather and not (hw or tiled or antialias) and mesh is None and order == 1
+                  and mode in HW_MODES)
         # 3-channel pictures read back as RGB32UI texels (see readback). The
         # warp shader packs its own pixels where its per-pixel code is short
         # (FPI-like maps, order <= 1), else a pass packs them: a shader that
         # inlines FPW_PACK_PIXELS copies of a TPS or cubic sampling compiles
         # for seconds on llvmpipe.
-        packs = c == 3 and self.pack_rgb and not tiled and mesh is None and order <= 1 and self.short_map
+        packs = (c == 3 and self.pack_rgb and not tiled and mesh is None and order <= 1 and self.short_map
+                 and not antialias)
         integer = image.dtype.kind == "u"
         if tiled:
             output = "accumulate"
@@ -263,19 +271,20 @@ class GLWarper:
             output = "int" if integer else "float"
         key = ProgramKey(FULLSCREEN, "warp.frag", stages=stages, order=order, mode=mode,
                          source="hw" if hw else SOURCE_KINDS[image.dtype], gather_channels=c if gather else 0,
-                         output=output, pack_pixels=readback.pixels_per_texel(image.dtype) if packs else 0)
+                         output=output, pack_pixels=readback.pixels_per_texel(image.dtype) if packs else 0,
+                         flags=("FPW_ANTIALIAS",) if antialias else ())
         if mesh is None:
             return key, None, packs
         fill = key.with_changes(stages=None, output="fill_int" if integer else "fill")
         return key.with_changes(vertex="mesh.vert", fragment="mesh.frag"), fill, False
 
-    def _render_bound(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages):
+    def _render_bound(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False):
         h, w, c = image.shape
         oh, ow = (int(v) for v in output_shape)
         out = np.empty((oh, ow, c), dtype=image.dtype)
         tiled = h > self.max_size or w > self.max_size
         hw = hardware_filter and not tiled
-        key, fill_key, packs = self._program_keys(image, order, mode, mesh, hw, tiled, stages)
+        key, fill_key, packs = self._program_keys(image, order, mode, mesh, hw, tiled, stages, antialias)
         prog = self.program(key)
         top = float(np.iinfo(image.dtype).max) if image.dtype.kind == "u" else 0.0
         cval4 = tuple(np.resize(cval, 4).astype(float))
