@@ -122,7 +122,7 @@ class ConstrainedFPI(Transform):
         Where the K points sit along each edge. "uniform" (default) is the
         paper's equal spacing; "adaptive" re-spaces them from the measured
         deviation so it is about equal between all neighbours
-        (:func:`fit_spline`). Measured over 320 random fold-free
+        (``fpiwarp._constraint_fit.fit_spline``). Measured over 320 random fold-free
         configurations (benchmarks/seams.py), deviation from the edges'
         similarities relative to the edge length, median / p90 / max:
         default 2.5e-3 / 5.2e-3 / 2.0e-2; points_per_edge=16,
@@ -142,7 +142,7 @@ class ConstrainedFPI(Transform):
         constraints before the Möbius change of coordinates.
     spacing, spacing_used, edge_parameters : the spacing asked for, the
         one used ("adaptive" gives way to a capped or plainer spacing where
-        it would fold the map over, see :func:`fit_spline`), and the edge
+        it would fold the map over, see ``fpiwarp._constraint_fit.fit_spline``), and the edge
         parameters t in [0, 1] used, one array per constrained edge.
 
     ``inverse`` is numerical: m_Z⁻¹ ∘ phi⁻¹ ∘ m_W with phi⁻¹ by Newton's

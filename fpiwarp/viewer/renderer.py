@@ -117,7 +117,7 @@ class Renderer:
         piecewise linear between grid points); "auto": "pixel" for maps of
         constant dilation (an FPI), "mesh" for the others.
     antialias : bool
-        Whether :meth:`warp_full` (the full-resolution export) antialiases,
+        Whether ``warp_full`` (the full-resolution export) antialiases,
         as :func:`fpiwarp.warp_image` does with ``antialias=True``. The
         on-screen preview (:meth:`draw`) is not antialiased.
 
