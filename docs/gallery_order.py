@@ -10,6 +10,7 @@ ORDER = [
     "plot_fpi_curve.py",
     "plot_local_deformation.py",
     "plot_compound.py",
+    "plot_antialias.py",
     "plot_map_points_mesh.py",
     "plot_source_positions.py",
     "plot_batch_folder.py",
