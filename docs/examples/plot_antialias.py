@@ -50,7 +50,8 @@ def psnr(a, b):
 
 
 fig, axes = plt.subplots(1, 3, figsize=(10, 3.6))
-for ax, (title, img) in zip(axes, [("point sampling", plain), ("antialias=True", smooth), ("8×8 reference", reference)]):
+panels = [("point sampling", plain), ("antialias=True", smooth), ("8×8 reference", reference)]
+for ax, (title, img) in zip(axes, panels):
     ax.imshow(img, cmap="gray", vmin=0, vmax=1)
     label = title if img is reference else f"{title}\n{psnr(img, reference):.1f} dB"
     ax.set_title(label)
