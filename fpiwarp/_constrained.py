@@ -31,6 +31,7 @@ each offset point.
 """
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._constraint_fit import edge_similarity, fit_spline
 from ._errors import ArgumentTypeError, ConstraintError
@@ -40,7 +41,7 @@ from ._linear import RLinear
 from ._mobius import Mobius, centered_at_zero, mobius_product
 from ._quad import check_quad_pair, parallelogram_mobius
 from ._transform import Transform, chain
-from .block import MAX_CENTERS, MobiusPart
+from .block import MAX_CENTERS, MobiusPart, Stage
 
 #: Adjacent constrained edges must agree on one similarity to this relative tolerance.
 SIMILARITY_RTOL = 1e-6
@@ -166,7 +167,15 @@ class ConstrainedFPI(Transform):
     fpiwarp.ConstraintError: adjacent constrained edges 0 and 1 must undergo one shared similarity, ...
     """
 
-    def __init__(self, src, dst, edges, points_per_edge=10, delta=0.01, spacing="uniform"):
+    def __init__(
+        self,
+        src: ArrayLike,
+        dst: ArrayLike,
+        edges: tuple[int, int],
+        points_per_edge: int = 10,
+        delta: float = 0.01,
+        spacing: str = "uniform",
+    ):
         z, w, flip = check_quad_pair(src, dst)
         edges, kind = normalize_edges(edges)
         k = _check_points_per_edge(points_per_edge)
@@ -246,14 +255,14 @@ class ConstrainedFPI(Transform):
         attrs = {k: v for k, v in self.__dict__.items() if k in _ATTRS}
         return ConstrainedFPI._from_parts(self._z, m._map(self._w), self.pre, self.core, post, **attrs)
 
-    def stage(self, **kw):
+    def stage(self, **kw) -> Stage:
         """One parameter-block stage: pre-Möbius, TPS core (or its Newton
         inverse), post-Möbius; ``kw`` adds Stage fields (regions)."""
         p = self.pre
         pre = MobiusPart(center=p.q, inverse_pole=p.s, scale=p.alpha)
         return self.core.stage(pre=pre, post=centered_at_zero(self.post), **kw)
 
-    def stages(self):
+    def stages(self) -> list[Stage]:
         return [self.stage()]
 
     def __repr__(self):

@@ -197,7 +197,7 @@ class FPI(Transform):
         """The exact inverse: the FPI from dst to src."""
         return FPI._from_parts(self._w, self._z, self.m_dst, self.linear.inverse, self.m_src)
 
-    def stages(self):
+    def stages(self) -> list[Stage]:
         m, a, n = self.m_src, self.linear, self._m_dst_inv
         # pre: m_Z has beta = 0; post: m_W⁻¹ re-centered at 0 (its input,
         # parallelogram coordinates of unit size, lies near 0).

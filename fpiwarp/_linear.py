@@ -87,10 +87,10 @@ class RLinear(Transform):
             )
         return None
 
-    def conjugated(self):
+    def conjugated(self) -> "RLinear":
         return RLinear(np.conj(self.l1), np.conj(self.l2), np.conj(self.l3))
 
-    def stages(self):
+    def stages(self) -> list[Stage]:
         return [Stage(linear=LinearPart(self.l1, self.l2, self.l3))]
 
     def __repr__(self):

@@ -52,11 +52,12 @@ by the same rule.
 import dataclasses
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._constrained import ConstrainedFPI, as_mobius, edge_similarity, shared_similarity
 from ._quad import signed_area
 from ._transform import Transform
-from .block import Region
+from .block import Region, Stage
 
 
 def _check_line_bounds(q, k, outward, name):
@@ -112,7 +113,15 @@ class LocalDeformation(Transform):
     [[-5.0, 0.5], [9.8, -0.85]]
     """
 
-    def __init__(self, src, dst, edges, points_per_edge=10, delta=0.01, spacing="uniform"):
+    def __init__(
+        self,
+        src: ArrayLike,
+        dst: ArrayLike,
+        edges: tuple[int, int],
+        points_per_edge: int = 10,
+        delta: float = 0.01,
+        spacing: str = "uniform",
+    ):
         inner = ConstrainedFPI(
             src, dst, edges=edges, points_per_edge=points_per_edge, delta=delta, spacing=spacing
         )
@@ -214,7 +223,7 @@ class LocalDeformation(Transform):
         )
         return LocalDeformation._from_parts(inner, regions)
 
-    def stages(self):
+    def stages(self) -> list[Stage]:
         return [dataclasses.replace(self.inner.stage(), regions=self.regions)]
 
     def __repr__(self):

@@ -141,11 +141,11 @@ class Mobius(Transform):
             return Mobius(*mobius_product(nxt.coefficients, self.coefficients), center=self.q)
         return None
 
-    def conjugated(self):
+    def conjugated(self) -> "Mobius":
         """z -> conj(m(conj z)), the same map seen in the mirrored plane."""
         return Mobius.centered(*(np.conj(v) for v in (self.q, self.s, self.alpha, self.beta)))
 
-    def stages(self):
+    def stages(self) -> list[Stage]:
         pre = MobiusPart(center=self.q, inverse_pole=self.s, scale=self.alpha)
         return [Stage(pre=pre, linear=LinearPart(1, 0, self.beta))]
 

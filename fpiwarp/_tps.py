@@ -206,17 +206,17 @@ class ThinPlateSpline(Transform):
     def inverse(self):
         return InverseThinPlateSpline(self)
 
-    def conjugated(self):
+    def conjugated(self) -> "ThinPlateSpline":
         """p -> conj(phi(conj p)): the same spline in the mirrored plane."""
         return ThinPlateSpline(
             np.conj(self.centers), np.conj(self.weights), tuple(np.conj(v) for v in self.lam)
         )
 
-    def stage(self, **kw):
+    def stage(self, **kw) -> Stage:
         """The parameter-block stage of this spline (extra Stage fields in ``kw``)."""
         return Stage(core=CORE_TPS, linear=LinearPart(*self.lam), centers=self.centers, weights=self.weights, **kw)
 
-    def stages(self):
+    def stages(self) -> list[Stage]:
         return [self.stage()]
 
     def __repr__(self):
@@ -314,7 +314,7 @@ class InverseThinPlateSpline(Transform):
     def inverse(self):
         return self.tps
 
-    def stage(self, **kw):
+    def stage(self, **kw) -> Stage:
         t = self.tps
         return Stage(
             core=CORE_TPS_INVERSE,
@@ -326,7 +326,7 @@ class InverseThinPlateSpline(Transform):
             **kw,
         )
 
-    def stages(self):
+    def stages(self) -> list[Stage]:
         return [self.stage()]
 
     def __repr__(self):

@@ -5,11 +5,17 @@ chosen backend's declared capabilities, then hand normalized arrays to the
 backend, so every backend sees the same contract.
 """
 
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._transform import Transform
 from .backends import backend_capabilities, get_backend
 from .validation import check_map_size, check_point_count, check_points, check_transform, check_warp_arguments
 
 
-def map_points(transform, points, backend="numpy"):
+def map_points(transform: Transform, points: ArrayLike, backend: str = "numpy") -> np.ndarray:
     """Map points through ``transform`` on a backend, one point per vertex.
 
     The same as ``transform(points)``, computed by the chosen backend: the
@@ -61,8 +67,18 @@ def map_points(transform, points, backend="numpy"):
     return get_backend(backend).map_points(transform, pts)
 
 
-def warp_image(image, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
-               backend_options=None, antialias=False):
+def warp_image(
+    image: np.ndarray,
+    transform: Transform,
+    output_shape: tuple[int, int] | None = None,
+    *,
+    order: int = 1,
+    mode: str = "constant",
+    cval: float | Sequence[float] = 0,
+    backend: str = "numpy",
+    backend_options: Mapping[str, object] | None = None,
+    antialias: bool = False,
+) -> np.ndarray:
     """Warp ``image`` by ``transform``, which maps source to output coordinates.
 
     Each output pixel samples the source at ``transform.inverse`` of its

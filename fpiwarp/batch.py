@@ -15,8 +15,10 @@ capabilities say ``batches`` warps a whole stack in one call
 """
 
 import os
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._errors import ArgumentError
 from ._transform import Transform
@@ -36,8 +38,18 @@ def _as_image(item):
     return item
 
 
-def warp_images(images, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
-                backend_options=None, antialias=False):
+def warp_images(
+    images: Iterable[np.ndarray | str | os.PathLike],
+    transform: Transform,
+    output_shape: tuple[int, int] | None = None,
+    *,
+    order: int = 1,
+    mode: str = "constant",
+    cval: float | Sequence[float] = 0,
+    backend: str = "numpy",
+    backend_options: Mapping[str, object] | None = None,
+    antialias: bool = False,
+) -> Iterator[np.ndarray]:
     """Warp each of ``images`` by ``transform``; yield the warped arrays in
     order, one at a time (bounded memory).
 
@@ -86,8 +98,17 @@ def warp_images(images, transform, output_shape=None, *, order=1, mode="constant
     return (warper(_as_image(item)) for item in images)
 
 
-def warp_batch(images, transforms, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
-               antialias=False):
+def warp_batch(
+    images: ArrayLike,
+    transforms: Transform | Sequence[Transform],
+    output_shape: tuple[int, int] | None = None,
+    *,
+    order: int = 1,
+    mode: str = "constant",
+    cval: float | Sequence[float] = 0,
+    backend: str = "numpy",
+    antialias: bool = False,
+) -> np.ndarray:
     """Warp a stack of same-size images, with one map for all or one each.
 
     Parameters

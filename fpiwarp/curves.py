@@ -7,20 +7,21 @@ it is bounded unless the circle passes through the pole, which is refused.
 """
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._fpi import FPI
 from ._points import as_xy
 from ._quad import check_quad, signed_area
 
 
-def curve_map(anchors):
+def curve_map(anchors: ArrayLike) -> FPI:
     """The FPI sending 1, i, -1, -i (clockwise anchors: 1, -i, -1, i) to the anchors."""
     z = check_quad(anchors, "anchors")
     ring = np.array([1, 1j, -1, -1j]) if signed_area(z) > 0 else np.array([1, -1j, -1, 1j])
     return FPI(as_xy(ring), as_xy(z))
 
 
-def fpi_curve(anchors, n=256):
+def fpi_curve(anchors: ArrayLike, n: int = 256) -> np.ndarray:
     """The closed FPI curve through four anchor points (paper Fig. 6).
 
     Parameters

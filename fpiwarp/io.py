@@ -131,7 +131,9 @@ def read_image(
     return apply_orientation(array, info, tag, orientation)
 
 
-def write_image(path: str | os.PathLike, array, info: ImageInfo | None = None, *, overwrite: bool = False) -> None:
+def write_image(
+    path: str | os.PathLike, array: np.ndarray, info: ImageInfo | None = None, *, overwrite: bool = False
+) -> None:
     """Write ``array`` to ``path`` atomically, in the format its extension names.
 
     The file is written to a temporary name in the same folder and renamed,

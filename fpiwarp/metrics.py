@@ -14,13 +14,19 @@ derivatives; any other callable taking (N, 2) points to (N, 2) points is
 differentiated by central differences with step ``h``.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._errors import ArgumentError, ArgumentTypeError
 from ._points import as_complex, as_xy
 from ._transform import Transform, distortion_from_wirtinger
+
+#: What the metrics measure: an fpiwarp map (analytic derivatives) or any
+#: callable taking (N, 2) points to (N, 2) points (central differences).
+MapLike = Transform | Callable[[np.ndarray], np.ndarray]
 
 
 def _derivatives(f, points, h):
@@ -44,7 +50,7 @@ def _derivatives(f, points, h):
     return (0.5 * (fx - 1j * fy)).reshape(z.shape), (0.5 * (fx + 1j * fy)).reshape(z.shape)
 
 
-def conformal_distortion(f, points, h=1e-6):
+def conformal_distortion(f: MapLike, points: ArrayLike, h: float = 1e-6) -> np.ndarray:
     """Pointwise conformal distortion K of ``f`` at ``points``.
 
     Parameters
@@ -79,7 +85,7 @@ def conformal_distortion(f, points, h=1e-6):
     return distortion_from_wirtinger(*_derivatives(f, points, h))
 
 
-def conformal_dilation(f, points, h=1e-6):
+def conformal_dilation(f: MapLike, points: ArrayLike, h: float = 1e-6) -> np.ndarray:
     """Pointwise conformal dilation ``|f_zbar| / |f_z|`` at (..., 2) ``points``.
 
     Parameters
@@ -110,7 +116,7 @@ def conformal_dilation(f, points, h=1e-6):
         return np.abs(fzb) / np.abs(fz)
 
 
-def jacobian_determinant(f, points, h=1e-6):
+def jacobian_determinant(f: MapLike, points: ArrayLike, h: float = 1e-6) -> np.ndarray:
     """Pointwise Jacobian determinant ``|f_z|² - |f_zbar|²`` (> 0: orientation kept).
 
     Parameters
@@ -140,7 +146,7 @@ def jacobian_determinant(f, points, h=1e-6):
     return np.abs(fz) ** 2 - np.abs(fzb) ** 2
 
 
-def area_distortion(f, points, h=1e-6):
+def area_distortion(f: MapLike, points: ArrayLike, h: float = 1e-6) -> float:
     """The area distortion ``max J + 1 / min J`` over ``points`` (paper §5.1).
 
     Parameters
@@ -184,7 +190,7 @@ class DistortionSummary:
     max_distortion: float
 
 
-def summarize(f, points, h=1e-6):
+def summarize(f: MapLike, points: ArrayLike, h: float = 1e-6) -> DistortionSummary:
     """The paper's §5.1 table row for ``f`` over ``points``.
 
     Parameters
@@ -226,7 +232,7 @@ def summarize(f, points, h=1e-6):
     )
 
 
-def grid(corners, n=64):
+def grid(corners: ArrayLike, n: int = 64) -> np.ndarray:
     """An n × n grid of points spanning a quad (bilinear), shape (n, n, 2).
 
     ``corners`` is (4, 2) in quad order, or (2, 2) [[x0, y0], [x1, y1]]

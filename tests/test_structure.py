@@ -134,3 +134,48 @@ def test_no_private_name_used_across_modules():
             ):
                 found.append(f"{name}: {aliases[node.value.id]}.{node.attr}")
     assert not found, "private names used across modules: " + ", ".join(sorted(set(found)))
+
+
+def _public_callables():
+    """(name, callable) of every function and method users call: the names
+    of ``fpiwarp.__all__`` (classes: their constructor and public methods)
+    and of the public modules users import from."""
+    import inspect
+
+    import fpiwarp
+    from fpiwarp import curves, metrics, positions
+
+    found = []
+    metric_names = ["conformal_distortion", "conformal_dilation", "jacobian_determinant", "area_distortion",
+                    "summarize", "grid"]
+    for module, names in [(fpiwarp, fpiwarp.__all__), (metrics, metric_names), (curves, ["curve_map", "fpi_curve"]),
+                          (positions, ["source_positions"])]:
+        for name in names:
+            obj = getattr(module, name)
+            if inspect.isclass(obj):
+                if issubclass(obj, BaseException):
+                    continue
+                members = {"__init__": obj.__init__} if "__init__" in vars(obj) else {}
+                members.update({k: v for k, v in vars(obj).items() if inspect.isfunction(v) and not k.startswith("_")
+                                and k not in ("map_complex", "wirtinger")})
+                if obj is fpiwarp.Transform:
+                    members.update({"map_complex": obj.map_complex, "wirtinger": obj.wirtinger})
+                found += [(f"{name}.{k}", v) for k, v in members.items()]
+            elif callable(obj):
+                found.append((name, obj))
+    return found
+
+
+def test_the_public_api_has_type_hints():
+    """py.typed promises hints: every parameter and return of what users call."""
+    import inspect
+
+    missing = []
+    for name, func in _public_callables():
+        sig = inspect.signature(func)
+        params = [p for p in sig.parameters.values() if p.name not in ("self", "cls")
+                  and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
+        if any(p.annotation is inspect.Parameter.empty for p in params) or (
+                sig.return_annotation is inspect.Signature.empty and not name.endswith("__init__")):
+            missing.append(name)
+    assert not missing, "no type hints: " + ", ".join(sorted(missing))
