@@ -89,7 +89,7 @@ def edge_deviation(f, src, dst, edges, n=401):
     for k in edges:
         a, b = edge_similarity(z, w, k)
         p = z[k] + t * (z[(k + 1) % 4] - z[k])
-        dev = np.abs(f._map(p) - (a * p + b)) / abs(w[(k + 1) % 4] - w[k])
+        dev = np.abs(f.map_complex(p) - (a * p + b)) / abs(w[(k + 1) % 4] - w[k])
         worst = max(worst, float(dev.max()))
     return worst
 
@@ -103,7 +103,7 @@ def local_jump(src, dst, edges, kw, n=401):
     worst = 0.0
     for reg, k in zip(loc.regions, loc.edges):
         p = z[k] + t * (z[(k + 1) % 4] - z[k])
-        jump = np.abs(loc._map(p + eps * reg.normal) - loc._map(p - eps * reg.normal))
+        jump = np.abs(loc.map_complex(p + eps * reg.normal) - loc.map_complex(p - eps * reg.normal))
         worst = max(worst, float(jump.max()) / abs(w[(k + 1) % 4] - w[k]))
     return worst
 
@@ -118,7 +118,7 @@ def beyond_corners(f, src, dst, edges, s):
         e = z[(k + 1) % 4] - z[k]
         a, b = edge_similarity(z, w, k)
         p = np.array([z[k] - s * e, z[(k + 1) % 4] + s * e])
-        worst = max(worst, float(np.max(np.abs(f._map(p) - (a * p + b)))) / abs(w[(k + 1) % 4] - w[k]))
+        worst = max(worst, float(np.max(np.abs(f.map_complex(p) - (a * p + b)))) / abs(w[(k + 1) % 4] - w[k]))
     return worst
 
 
@@ -152,7 +152,7 @@ def measure(configs, kw, grid_n):
         dev.append(edge_deviation(f, src, dst, edges))
         jump.append(local_jump(src, dst, edges, kw))
         size = float(np.max(np.abs(_c(dst) - _c(dst).mean())))
-        corner.append(float(np.max(np.abs(f._map(_c(src)) - _c(dst)))) / size)
+        corner.append(float(np.max(np.abs(f.map_complex(_c(src)) - _c(dst)))) / size)
         g = grid(src, grid_n)
         kmax.append(float(np.max(f.distortion(g))))
         folds += int(not np.min(jacobian_determinant(f, g)) > 0)

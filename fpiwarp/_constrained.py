@@ -226,10 +226,10 @@ class ConstrainedFPI(Transform):
         return getattr(self.core, "tps", self.core)
 
     def _map(self, z):
-        return self.post._map(self.core._map(self.pre._map(z)))
+        return self.post.map_complex(self.core.map_complex(self.pre.map_complex(z)))
 
     def _wirtinger(self, z):
-        w, fz, fzb = self.pre._wirtinger(z)
+        w, fz, fzb = self.pre.wirtinger(z)
         w, fz, fzb = chain(self.core, w, fz, fzb)
         return chain(self.post, w, fz, fzb)
 
@@ -253,7 +253,7 @@ class ConstrainedFPI(Transform):
         if post.q != self.post.q:  # the fused pole sits at the center: keep two steps
             return None
         attrs = {k: v for k, v in self.__dict__.items() if k in _ATTRS}
-        return ConstrainedFPI._from_parts(self._z, m._map(self._w), self.pre, self.core, post, **attrs)
+        return ConstrainedFPI._from_parts(self._z, m.map_complex(self._w), self.pre, self.core, post, **attrs)
 
     def stage(self, **kw) -> Stage:
         """One parameter-block stage: pre-Möbius, TPS core (or its Newton

@@ -96,7 +96,7 @@ def _refuse(what, err, allowed, K):
 
 def check_corners(f, z, w):
     """Refuse the map f (any Transform) if it misses w's corners."""
-    err = float(np.max(np.abs(f._map(z) - w)))
+    err = float(np.max(np.abs(f.map_complex(z) - w)))
     if not err <= allowed_error(w):
         _refuse("the map misses the dst corners", err / radius(w), allowed_error(w) / radius(w), getattr(f, "K", None))
 
@@ -124,8 +124,8 @@ def check_exact(f, z, w):
     pole = inv.pole_image  # the pole of f
     p = _probe_points(z, None if pole is None else complex(pole[0], pole[1]), rz)
     with np.errstate(all="ignore"):
-        forward = f._map(np.concatenate([z, p]))
-        back = inv._map(np.concatenate([w, forward[4:]]))
+        forward = f.map_complex(np.concatenate([z, p]))
+        back = inv.map_complex(np.concatenate([w, forward[4:]]))
     err = float(np.max(np.abs(forward[:4] - w)))
     if not err <= allowed_w:
         _refuse("the map misses the dst corners", err / rw, allowed_w / rw, K)

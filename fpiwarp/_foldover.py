@@ -70,7 +70,7 @@ def worst_fold(f, z, margin=FOLD_MARGIN, **kw):
     map's usual area scale; a sample with J <= margin J_typical counts (a
     fold between samples shows as a near-zero J at its neighbours)."""
     p = roi_samples(z, **kw)
-    _, fz, fzb = f._wirtinger(p)
+    _, fz, fzb = f.wirtinger(p)
     jac = np.abs(fz) ** 2 - np.abs(fzb) ** 2
     k = int(np.argmin(jac))
     typical = float(np.median(np.abs(jac)))

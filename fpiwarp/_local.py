@@ -179,7 +179,7 @@ class LocalDeformation(Transform):
         which = self._select(z)
         out = np.empty_like(z)
         inside = which < 0
-        out[inside] = self.inner._map(z[inside])
+        out[inside] = self.inner.map_complex(z[inside])
         for r, reg in enumerate(self.regions):
             sel = which == r
             out[sel] = reg.a * z[sel] + reg.b
@@ -190,7 +190,7 @@ class LocalDeformation(Transform):
         which = self._select(z)
         w, fz, fzb = np.empty_like(z), np.empty_like(z), np.zeros_like(z)
         inside = which < 0
-        w[inside], fz[inside], fzb[inside] = self.inner._wirtinger(z[inside])
+        w[inside], fz[inside], fzb[inside] = self.inner.wirtinger(z[inside])
         for r, reg in enumerate(self.regions):
             sel = which == r
             w[sel] = reg.a * z[sel] + reg.b
@@ -218,7 +218,7 @@ class LocalDeformation(Transform):
             return None
         inner = self.inner._fuse_with(m)
         regions = tuple(
-            Region(origin=r.origin, normal=r.normal, a=m.alpha * r.a, b=m._map(np.complex128(r.b)))
+            Region(origin=r.origin, normal=r.normal, a=m.alpha * r.a, b=m.map_complex(np.complex128(r.b)))
             for r in self.regions
         )
         return LocalDeformation._from_parts(inner, regions)

@@ -131,7 +131,7 @@ class ThinPlateSpline(Transform):
         l3 = a0 - l1 * mid - l2 * np.conj(mid)
         tps = cls(c, weights, (l1, l2, l3))
         # exact constant: make phi(c) match d on average (absorbs the log(scale) term)
-        tps.l3 += complex(np.mean(d - tps._map(c)))
+        tps.l3 += complex(np.mean(d - tps.map_complex(c)))
         return tps
 
     @property
@@ -241,7 +241,7 @@ class InverseThinPlateSpline(Transform):
 
     def __init__(self, tps):
         self.tps = tps
-        t = tps._map(tps.centers)
+        t = tps.map_complex(tps.centers)
         self.mid = complex(np.mean(t))
         self.scale = float(np.max(np.abs(t - self.mid))) or 1.0
 
@@ -263,7 +263,7 @@ class InverseThinPlateSpline(Transform):
         size = np.maximum(self.scale, np.abs(target - self.mid))
         tol = HOST_AIM * size
         x = mu1 * target + mu2 * np.conj(target) + mu3
-        val, fz, fzb = tps._wirtinger(x)
+        val, fz, fzb = tps.wirtinger(x)
         res = val - target
         err = np.abs(res)
         active = np.flatnonzero(err > tol)
@@ -277,7 +277,7 @@ class InverseThinPlateSpline(Transform):
             t = np.ones(active.size)
             for _half in range(8):  # backtracking: accept the first step that helps
                 trial = x[active] - t * step
-                v2, fz2, fzb2 = tps._wirtinger(trial)
+                v2, fz2, fzb2 = tps.wirtinger(trial)
                 r2 = v2 - target[active]
                 better = np.abs(r2) < err[active]
                 if better.all():
@@ -306,7 +306,7 @@ class InverseThinPlateSpline(Transform):
 
     def _wirtinger(self, p):
         x = self._map(p)
-        _, fz, fzb = self.tps._wirtinger(x)
+        _, fz, fzb = self.tps.wirtinger(x)
         det = np.abs(fz) ** 2 - np.abs(fzb) ** 2
         return x, np.conj(fz) / det, -fzb / det
 

@@ -179,3 +179,19 @@ def test_the_public_api_has_type_hints():
                 sig.return_annotation is inspect.Signature.empty and not name.endswith("__init__")):
             missing.append(name)
     assert not missing, "no type hints: " + ", ".join(sorted(missing))
+
+
+def test_maps_are_called_through_their_public_protocol():
+    """``_map``/``_wirtinger`` are a map's own hooks behind ``map_complex`` and
+    ``wirtinger``: only ``self`` calls them."""
+    found = []
+    for name, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (isinstance(node, ast.Attribute) and node.attr in ("_map", "_wirtinger")
+                    and not (isinstance(node.value, ast.Name) and node.value.id == "self")):
+                found.append(f"{name}:{node.lineno}")
+    for path in (ROOT / "benchmarks").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Attribute) and node.attr in ("_map", "_wirtinger"):
+                found.append(f"benchmarks/{path.name}:{node.lineno}")
+    assert not found, "private map hooks called from outside the map: " + ", ".join(found)
