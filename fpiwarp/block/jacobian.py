@@ -31,15 +31,9 @@ from .layout import (
     ROW_L12,
     ROW_POST,
     ROW_PRE,
-    ROW_REGIONS,
     ROW_SCALE,
 )
-from .reference import newton, tps_core
-
-
-def _c(row, i):
-    """The complex number in columns (i, i + 1) of a row."""
-    return complex(row[i], row[i + 1])
+from .reference import complex_at, newton, region_winner, tps_core
 
 
 def chain(g_w, g_wb, f_z, f_zb):
@@ -79,24 +73,14 @@ def jacobian(block, points, dtype=np.float64):
 def stage_wirtinger(rows, kind, z, dtype):
     """One stage's values and Wirtinger derivatives at complex z (mirrors
     :func:`fpiwarp.block.reference.evaluate_stage` step by step)."""
-    best = np.zeros(z.shape, dtype=dtype)
-    outside = np.full(z.shape, np.nan + 0j, dtype=z.dtype)
-    outside_dz = np.full(z.shape, np.nan + 0j, dtype=z.dtype)
-    for r in range(kind.n_regions):
-        o, nrm = _c(rows[ROW_REGIONS + 2 * r], 0), _c(rows[ROW_REGIONS + 2 * r], 2)
-        a, b = _c(rows[ROW_REGIONS + 2 * r + 1], 0), _c(rows[ROW_REGIONS + 2 * r + 1], 2)
-        depth = ((z - o) * np.conj(nrm)).real
-        win = depth > best
-        best = np.where(win, depth, best)
-        outside = np.where(win, a * z + b, outside)
-        outside_dz = np.where(win, a, outside_dz)
-    u = z - _c(rows[ROW_PRE], 0)
-    den = 1 - _c(rows[ROW_PRE], 2) * u
-    k1 = _c(rows[ROW_SCALE], 0)
+    inside, outside, outside_dz = region_winner(rows, kind, z, dtype)
+    u = z - complex_at(rows[ROW_PRE], 0)
+    den = 1 - complex_at(rows[ROW_PRE], 2) * u
+    k1 = complex_at(rows[ROW_SCALE], 0)
     p = k1 * u / den
     dz, dzb = k1 / (den * den), np.zeros_like(z)
     if kind.core == CORE_AFFINE:
-        l1, l2, l3 = _c(rows[ROW_L12], 0), _c(rows[ROW_L12], 2), _c(rows[ROW_L3], 0)
+        l1, l2, l3 = complex_at(rows[ROW_L12], 0), complex_at(rows[ROW_L12], 2), complex_at(rows[ROW_L3], 0)
         p, (dz, dzb) = l1 * p + l2 * np.conj(p) + l3, chain(l1, l2, dz, dzb)
     elif kind.core == CORE_TPS:
         p, g_w, g_wb = tps_core(p, rows, kind.n_centers, dtype)
@@ -108,11 +92,10 @@ def stage_wirtinger(rows, kind, z, dtype):
         dz, dzb = chain(np.conj(g_z) / det, -g_zb / det, dz, dzb)
     else:  # describe() refuses unknown cores; kept explicit like every kernel
         raise ValueError(f"unknown core {kind.core}")
-    den = 1 - _c(rows[ROW_POST], 0) * p
-    k2 = _c(rows[ROW_SCALE], 2)
-    w = _c(rows[ROW_POST], 2) + k2 * p / den
+    den = 1 - complex_at(rows[ROW_POST], 0) * p
+    k2 = complex_at(rows[ROW_SCALE], 2)
+    w = complex_at(rows[ROW_POST], 2) + k2 * p / den
     g = k2 / (den * den)
     dz, dzb = g * dz, g * dzb
-    inside = best > 0
     return (np.where(inside, outside, w), np.where(inside, outside_dz, dz),
             np.where(inside, np.zeros_like(dzb), dzb))

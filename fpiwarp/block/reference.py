@@ -24,19 +24,19 @@ from .layout import (
 )
 
 
-def _c(row, i):
+def complex_at(row, i):
     """The complex number in columns (i, i + 1) of a row."""
     return complex(row[i], row[i + 1])
 
 
 def tps_core(p, rows, n, dtype):
     """The TPS core of a stage and its Wirtinger derivatives at p."""
-    l1, l2, l3 = _c(rows[ROW_L12], 0), _c(rows[ROW_L12], 2), _c(rows[ROW_L3], 0)
+    l1, l2, l3 = complex_at(rows[ROW_L12], 0), complex_at(rows[ROW_L12], 2), complex_at(rows[ROW_L3], 0)
     val = l1 * p + l2 * np.conj(p) + l3
     dz = np.full_like(p, l1)
     dzb = np.full_like(p, l2)
     for j in range(n):
-        c, b = _c(rows[ROW_CENTERS + j], 0), _c(rows[ROW_CENTERS + j], 2)
+        c, b = complex_at(rows[ROW_CENTERS + j], 0), complex_at(rows[ROW_CENTERS + j], 2)
         d = p - c
         r2 = (d.real**2 + d.imag**2).astype(dtype)
         safe = np.where(r2 > 0, r2, 1)
@@ -65,33 +65,43 @@ def evaluate(block, points, dtype=np.float64):
     return out
 
 
-def evaluate_stage(rows, kind, z, dtype):
-    """One stage (its rows and :class:`~fpiwarp.block.describe.StageKind`) on complex z."""
+def region_winner(rows, kind, z, dtype):
+    """Step 1 of a stage: where a region wins at complex z, and its
+    similarity a z + b there. Returns (won, outside, a): ``won`` is a bool
+    mask, ``outside`` the winning similarity's value and ``a`` its
+    derivative (NaN where no region wins); the largest depth wins."""
     best = np.zeros(z.shape, dtype=dtype)
     outside = np.full(z.shape, np.nan + 0j, dtype=z.dtype)
+    slope = np.full(z.shape, np.nan + 0j, dtype=z.dtype)
     for r in range(kind.n_regions):
-        o, nrm = _c(rows[ROW_REGIONS + 2 * r], 0), _c(rows[ROW_REGIONS + 2 * r], 2)
-        a, b = _c(rows[ROW_REGIONS + 2 * r + 1], 0), _c(rows[ROW_REGIONS + 2 * r + 1], 2)
+        o, nrm = complex_at(rows[ROW_REGIONS + 2 * r], 0), complex_at(rows[ROW_REGIONS + 2 * r], 2)
+        a, b = complex_at(rows[ROW_REGIONS + 2 * r + 1], 0), complex_at(rows[ROW_REGIONS + 2 * r + 1], 2)
         depth = ((z - o) * np.conj(nrm)).real
         win = depth > best
         best = np.where(win, depth, best)
         outside = np.where(win, a * z + b, outside)
+        slope = np.where(win, a, slope)
+    return best > 0, outside, slope
+
+
+def evaluate_stage(rows, kind, z, dtype):
+    """One stage (its rows and :class:`~fpiwarp.block.describe.StageKind`) on complex z."""
+    won, outside, _ = region_winner(rows, kind, z, dtype)
     if kind.core != CORE_AFFINE and kind.n_regions > 0:
         # the kernels skip the costly cores where a region wins: so does the
         # reference (per point the same numbers: every step is elementwise)
-        inner = ~(best > 0)
         w = np.full(z.shape, np.nan + 0j, dtype=z.dtype)
-        w[inner] = _pre_core_post(rows, kind, z[inner], dtype)
-        return np.where(best > 0, outside, w)
-    return np.where(best > 0, outside, _pre_core_post(rows, kind, z, dtype))
+        w[~won] = _pre_core_post(rows, kind, z[~won], dtype)
+        return np.where(won, outside, w)
+    return np.where(won, outside, _pre_core_post(rows, kind, z, dtype))
 
 
 def _pre_core_post(rows, kind, z, dtype):
     """Steps 2-4 of a stage (pre-Möbius, core, post-Möbius) on complex z."""
-    u = z - _c(rows[ROW_PRE], 0)
-    p = _c(rows[ROW_SCALE], 0) * u / (1 - _c(rows[ROW_PRE], 2) * u)
+    u = z - complex_at(rows[ROW_PRE], 0)
+    p = complex_at(rows[ROW_SCALE], 0) * u / (1 - complex_at(rows[ROW_PRE], 2) * u)
     if kind.core == CORE_AFFINE:
-        l1, l2, l3 = _c(rows[ROW_L12], 0), _c(rows[ROW_L12], 2), _c(rows[ROW_L3], 0)
+        l1, l2, l3 = complex_at(rows[ROW_L12], 0), complex_at(rows[ROW_L12], 2), complex_at(rows[ROW_L3], 0)
         p = l1 * p + l2 * np.conj(p) + l3
     elif kind.core == CORE_TPS:
         p = tps_core(p, rows, kind.n_centers, dtype)[0]
@@ -99,13 +109,13 @@ def _pre_core_post(rows, kind, z, dtype):
         p = newton(p, rows, kind.n_centers, kind.newton_iters, rows[ROW_L3, 2], dtype)
     else:  # describe() refuses unknown cores; kept explicit like every kernel
         raise ValueError(f"unknown core {kind.core}")
-    return _c(rows[ROW_POST], 2) + _c(rows[ROW_SCALE], 2) * p / (1 - _c(rows[ROW_POST], 0) * p)
+    return complex_at(rows[ROW_POST], 2) + complex_at(rows[ROW_SCALE], 2) * p / (1 - complex_at(rows[ROW_POST], 0) * p)
 
 
 def newton(target, rows, n, iters, tol, dtype):
     """Solve TPS(x) = target by Newton from the inverse of the R-linear
     part; NaN where not within ``tol`` after ``iters`` steps."""
-    mu1, mu2, mu3 = _c(rows[ROW_MU12], 0), _c(rows[ROW_MU12], 2), _c(rows[ROW_MU3], 0)
+    mu1, mu2, mu3 = complex_at(rows[ROW_MU12], 0), complex_at(rows[ROW_MU12], 2), complex_at(rows[ROW_MU3], 0)
     x = mu1 * target + mu2 * np.conj(target) + mu3
     done = np.zeros(target.shape, dtype=bool)
     for _ in range(iters):
