@@ -56,6 +56,23 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
 }
 
 #ifdef FW_T
+/* The store phase of every warp kernel: the FW_VN pixels of the kernel's
+ * sampled value v (fw_pxv), converted to the image's type, into row oy
+ * from the work-item's first pixel gx0 + FW_VN * l (padding lanes rewrite
+ * the row's last pixel). */
+#define FW_RESULT(k, _) fw_ov res##k = FW_TO_DTYPE(v.c##k);
+#define FW_STORE_C(k, lane) dst[at + k] = (FW_T)FW_LANE(res##k, lane);
+#define FW_STORE_LANE(lane, _)                                         \
+    {                                                                  \
+        int at = (oy * ow + min(gx0 + FW_VN * l + lane, ow - 1)) * FW_C; \
+        FW_EACH_C(FW_STORE_C, lane)                                    \
+    }
+#define FW_STORE_PIXELS()                  \
+    do {                                   \
+        FW_EACH_C(FW_RESULT, _)            \
+        FW_EACH_LANE(FW_STORE_LANE, _)     \
+    } while (0)
+
 /* dst (oh x ow x FW_C) = src (h x w x FW_C) sampled at map(x, y) for every
  * output pixel center (x, y); block holds the inverse of the user's map.
  *
@@ -80,16 +97,7 @@ void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int 
         return;
     fw_fv sx = FW_VLOAD(pos_x + FW_VN * l), sy = FW_VLOAD(pos_y + FW_VN * l);
     fw_pxv v = fw_sample(src, w, h, sx, sy, cval);
-#define FW_RESULT(k, _) fw_ov res##k = FW_TO_DTYPE(v.c##k);
-    FW_EACH_C(FW_RESULT, _)
-    int row = oy * ow;
-#define FW_STORE_C(k, lane) dst[at + k] = (FW_T)FW_LANE(res##k, lane);
-#define FW_STORE_LANE(lane, _)                                      \
-    {                                                               \
-        int at = (row + min(gx0 + FW_VN * l + lane, ow - 1)) * FW_C; \
-        FW_EACH_C(FW_STORE_C, lane)                                 \
-    }
-    FW_EACH_LANE(FW_STORE_LANE, _)
+    FW_STORE_PIXELS();
 }
 #endif
 
@@ -171,15 +179,6 @@ void warp_image_aa(fw_block_t block, __global const FW_T *restrict src, int w, i
         FW_EACH_C(FW_AA_PICK, _)
 #undef FW_AA_PICK
     }
-#define FW_RESULT(k, _) fw_ov res##k = FW_TO_DTYPE(v.c##k);
-    FW_EACH_C(FW_RESULT, _)
-    int row = oy * ow;
-#define FW_STORE_C(k, lane) dst[at + k] = (FW_T)FW_LANE(res##k, lane);
-#define FW_STORE_LANE(lane, _)                                      \
-    {                                                               \
-        int at = (row + min(gx0 + FW_VN * l + lane, ow - 1)) * FW_C; \
-        FW_EACH_C(FW_STORE_C, lane)                                 \
-    }
-    FW_EACH_LANE(FW_STORE_LANE, _)
+    FW_STORE_PIXELS();
 }
 #endif
