@@ -124,10 +124,24 @@ def edge_deviation(f, z, w, k, t, samples=ADAPT_SAMPLES):
     return dev.reshape(len(t) - 1, samples).max(axis=1)
 
 
+def offset_partners(kind, k):
+    """Per constraint point (in :func:`constraint_points`' order) the index
+    of the edge point it is the offset copy of, -1 for the edge points and
+    the free corner: the spline's pairs for the block
+    (:mod:`fpiwarp._tps_pairing`)."""
+    if kind == "adjacent":  # edge 2 starts at the shared corner, edge 1's last point
+        anchors = np.concatenate([np.arange(k), [k - 1], np.arange(k, 2 * k - 1)])
+    else:
+        anchors = np.arange(2 * k)
+    return np.concatenate([np.full(2 * k, -1), anchors])
+
+
 def _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, spacing):
     pz = constraint_points(z, edges, kind, k, delta, spacing)
     pw = constraint_points(w, edges, kind, k, delta, spacing)
-    return ThinPlateSpline.fit(m_src.map_complex(pz), m_dst.map_complex(pw)), pz, pw
+    tps = ThinPlateSpline.fit(m_src.map_complex(pz), m_dst.map_complex(pw))
+    tps.partner = offset_partners(kind, k)
+    return tps, pz, pw
 
 
 def _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap):

@@ -20,7 +20,8 @@ from numpy.typing import ArrayLike
 from ._errors import ArgumentError, InverseNotConvergedError
 from ._linear import RLinear
 from ._transform import Transform, unsolved_are_nan
-from .block import CORE_TPS, CORE_TPS_INVERSE, MAX_CENTERS, LinearPart, Stage
+from ._tps_pairing import paired_fields
+from .block import CORE_TPS, CORE_TPS_INVERSE, CORE_TPS_PAIRS, CORE_TPS_PAIRS_INVERSE, MAX_CENTERS, LinearPart, Stage
 
 #: Points evaluated per chunk (bounds the (chunk, centers) work arrays,
 #: small enough to stay in cache).
@@ -81,6 +82,10 @@ class ThinPlateSpline(Transform):
                 f"a thin-plate spline packs at most {MAX_CENTERS} centers, got {len(self.centers)}"
             )
         self.l1, self.l2, self.l3 = (complex(v) for v in lam)
+        #: None, or per center the index of the center it is the offset copy
+        #: of (-1: none): then the block stores the centers as pairs
+        #: (:mod:`fpiwarp._tps_pairing`), which float32 evaluates exactly
+        self.partner = None
         if abs(abs(self.l1) - abs(self.l2)) <= 1e-14 * (abs(self.l1) + abs(self.l2)):
             raise ArgumentError("singular affine part of the thin-plate spline: |l1| == |l2|")
 
@@ -208,13 +213,28 @@ class ThinPlateSpline(Transform):
 
     def conjugated(self) -> "ThinPlateSpline":
         """p -> conj(phi(conj p)): the same spline in the mirrored plane."""
-        return ThinPlateSpline(
+        out = ThinPlateSpline(
             np.conj(self.centers), np.conj(self.weights), tuple(np.conj(v) for v in self.lam)
         )
+        out.partner = self.partner
+        return out
+
+    def block_terms(self, inverse=False):
+        """The core number and Stage fields of the spline's terms: paired
+        (``CORE_TPS_PAIRS``) where :attr:`partner` is set and the pairs fit
+        the block, else plain (``CORE_TPS``); the Newton inverse's cores
+        with ``inverse``."""
+        pairs = None if self.partner is None else paired_fields(self.centers, self.weights, self.partner)
+        if pairs is None:
+            return (CORE_TPS_INVERSE if inverse else CORE_TPS), {"centers": self.centers, "weights": self.weights}
+        c, w, d, b2 = pairs
+        core = CORE_TPS_PAIRS_INVERSE if inverse else CORE_TPS_PAIRS
+        return core, {"centers": c, "weights": w, "offsets": d, "offset_weights": b2}
 
     def stage(self, **kw) -> Stage:
         """The parameter-block stage of this spline (extra Stage fields in ``kw``)."""
-        return Stage(core=CORE_TPS, linear=LinearPart(*self.lam), centers=self.centers, weights=self.weights, **kw)
+        core, terms = self.block_terms()
+        return Stage(core=core, linear=LinearPart(*self.lam), **terms, **kw)
 
     def stages(self) -> list[Stage]:
         return [self.stage()]
@@ -316,11 +336,11 @@ class InverseThinPlateSpline(Transform):
 
     def stage(self, **kw) -> Stage:
         t = self.tps
+        core, terms = t.block_terms(inverse=True)
         return Stage(
-            core=CORE_TPS_INVERSE,
+            core=core,
             linear=LinearPart(*t.lam),
-            centers=t.centers,
-            weights=t.weights,
+            **terms,
             newton_iters=DEVICE_ITERS,
             newton_tol=DEVICE_RTOL * self.scale,
             **kw,

@@ -17,6 +17,7 @@ from .layout import (
     MAX_CENTERS,
     MAX_REGIONS,
     MAX_STAGES,
+    PAIRED_CORES,
     ROW_HEADER,
     ROW_L12,
     STAGE_ROWS,
@@ -79,6 +80,8 @@ def _stage_kind(block, k):
             f"stage {k} of the parameter block has {n_centers} centers, {n_regions} regions and "
             f"{iters} Newton steps (at most {MAX_CENTERS} centers and {MAX_REGIONS} regions)"
         )
+    if core in PAIRED_CORES and n_centers % 2:
+        raise ValueError(f"stage {k} of the parameter block has the paired core {core} and an odd {n_centers} center rows")
     return StageKind(core, n_centers, n_regions, iters)
 
 

@@ -9,7 +9,7 @@ values of :func:`fpiwarp.block.reference.evaluate`:
 * a region's similarity a z + b: (a, 0);
 * a Möbius part k u / (1 - s u), u = z - c: (k / (1 - s u)², 0);
 * the affine core l1 p + l2 conj(p) + l3: (l1, l2);
-* the TPS core: its derivatives (:func:`~fpiwarp.block.reference.tps_core`);
+* the TPS core (plain or paired): its derivatives (:func:`~fpiwarp.block.reference.tps_core`);
 * the TPS core's Newton inverse x(p): by the inverse function theorem,
   from the TPS derivatives (g_z, g_zbar) at the solution x,
   (conj(g_z), -g_zbar) / (|g_z|² - |g_zbar|²).
@@ -27,6 +27,9 @@ from .layout import (
     CORE_AFFINE,
     CORE_TPS,
     CORE_TPS_INVERSE,
+    CORE_TPS_PAIRS,
+    CORE_TPS_PAIRS_INVERSE,
+    PAIRED_CORES,
     ROW_L3,
     ROW_L12,
     ROW_POST,
@@ -82,12 +85,13 @@ def stage_wirtinger(rows, kind, z, dtype):
     if kind.core == CORE_AFFINE:
         l1, l2, l3 = complex_at(rows[ROW_L12], 0), complex_at(rows[ROW_L12], 2), complex_at(rows[ROW_L3], 0)
         p, (dz, dzb) = l1 * p + l2 * np.conj(p) + l3, chain(l1, l2, dz, dzb)
-    elif kind.core == CORE_TPS:
-        p, g_w, g_wb = tps_core(p, rows, kind.n_centers, dtype)
+    elif kind.core in (CORE_TPS, CORE_TPS_PAIRS):
+        p, g_w, g_wb = tps_core(p, rows, kind.n_centers, dtype, kind.core in PAIRED_CORES)
         dz, dzb = chain(g_w, g_wb, dz, dzb)
-    elif kind.core == CORE_TPS_INVERSE:
-        p = newton(p, rows, kind.n_centers, kind.newton_iters, rows[ROW_L3, 2], dtype)
-        _, g_z, g_zb = tps_core(p, rows, kind.n_centers, dtype)
+    elif kind.core in (CORE_TPS_INVERSE, CORE_TPS_PAIRS_INVERSE):
+        paired = kind.core in PAIRED_CORES
+        p = newton(p, rows, kind.n_centers, kind.newton_iters, rows[ROW_L3, 2], dtype, paired)
+        _, g_z, g_zb = tps_core(p, rows, kind.n_centers, dtype, paired)
         det = (g_z * np.conj(g_z)).real - (g_zb * np.conj(g_zb)).real
         dz, dzb = chain(np.conj(g_z) / det, -g_zb / det, dz, dzb)
     else:  # describe() refuses unknown cores; kept explicit like every kernel

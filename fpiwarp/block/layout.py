@@ -32,6 +32,28 @@ row   contents
 12+j  ``[c.re, c.im, b.re, b.im]``       TPS center j and its weight
 ====  ==========================================================
 
+The paired TPS cores (``CORE_TPS_PAIRS``, ``CORE_TPS_PAIRS_INVERSE``) read
+the same center rows two at a time: pair j is rows 12+2j and 13+2j,
+
+====  ==========================================================
+row   contents
+====  ==========================================================
+12+2j ``[c.re, c.im, W.re, W.im]``       the pair's first center c and
+                                          the summed weight W = b1 + b2
+13+2j ``[d.re, d.im, b2.re, b2.im]``     the offset d of its second center
+                                          c + d, and that center's weight
+====  ==========================================================
+
+(``n_centers`` counts rows: twice the pairs). A constrained FPI's spline
+has an edge point and its offset copy a distance δ apart with nearly
+opposite weights of order 1 / δ; summed as two float32 terms they cancel
+catastrophically. The pair's term
+``W U(|p - c|) + b2 (U(|p - c - d|) - U(|p - c|))`` holds W (of order 1,
+summed in float64 on the host), d (full relative precision) and the
+difference of U computed without cancellation
+(:func:`fpiwarp.block.tps_pairs.pair_terms`). A center without a partner
+is a pair with d = 0 and b2 = 0: its term is exactly the plain one.
+
 Evaluating one stage on a point z (:func:`fpiwarp.block.reference.evaluate`
 is the reference every kernel mirrors line by line):
 
@@ -41,6 +63,8 @@ is the reference every kernel mirrors line by line):
 2. pre-Möbius: u = z - q1; p = k1 * u / (1 - s1 * u)
 3. core (``CORE_AFFINE``): p = l1 p + l2 conj(p) + l3;
    (``CORE_TPS``) ``p = sum_j b_j r² log r + l1 p + l2 conj(p) + l3``, ``r = |p - c_j|``;
+   (``CORE_TPS_PAIRS``, ``CORE_TPS_PAIRS_INVERSE``) the same with the
+   paired terms above;
    (``CORE_TPS_INVERSE``) solve TPS(x) = p by Newton from
    x0 = mu1 p + mu2 conj(p) + mu3, at most newton_iters steps, stopping
    once ``|TPS(x) - p| <= newton_tol``; not converged: NaN (outside);
@@ -68,5 +92,15 @@ MAX_ROWS = 1 + MAX_STAGES * STAGE_ROWS
 
 # The cores, by number (header column 0).
 CORE_AFFINE, CORE_TPS, CORE_TPS_INVERSE = 0, 1, 2
+#: The TPS cores with paired center rows (see the second table above).
+CORE_TPS_PAIRS, CORE_TPS_PAIRS_INVERSE = 3, 4
 #: Every core a kernel knows, by name; any other number is refused.
-CORES = {"affine": CORE_AFFINE, "tps": CORE_TPS, "tps_inverse": CORE_TPS_INVERSE}
+CORES = {
+    "affine": CORE_AFFINE,
+    "tps": CORE_TPS,
+    "tps_inverse": CORE_TPS_INVERSE,
+    "tps_pairs": CORE_TPS_PAIRS,
+    "tps_pairs_inverse": CORE_TPS_PAIRS_INVERSE,
+}
+#: The cores whose center rows are read in pairs.
+PAIRED_CORES = (CORE_TPS_PAIRS, CORE_TPS_PAIRS_INVERSE)

@@ -9,6 +9,7 @@ from .layout import (
     MAX_CENTERS,
     MAX_REGIONS,
     MAX_STAGES,
+    PAIRED_CORES,
     ROW_CENTERS,
     ROW_HEADER,
     ROW_L3,
@@ -51,11 +52,18 @@ def _put(row, *values):
     row[: len(flat)] = flat
 
 
+def _center_rows(stage):
+    """Rows the stage's centers take: two per pair for the paired cores."""
+    return len(stage.centers) * (2 if stage.core in PAIRED_CORES else 1)
+
+
 def _check_stage(stage):
     if stage.core not in CORES.values():
         raise ValueError(f"unknown core {stage.core!r}; the kernels know {CORES}")
-    if len(stage.centers) > MAX_CENTERS:
-        raise ValueError(f"at most {MAX_CENTERS} TPS centers, got {len(stage.centers)}")
+    if _center_rows(stage) > MAX_CENTERS:
+        raise ValueError(f"at most {MAX_CENTERS} TPS center rows, got {_center_rows(stage)}")
+    if stage.core in PAIRED_CORES and not len(stage.centers) == len(stage.offsets) == len(stage.offset_weights):
+        raise ValueError("a paired TPS stage needs one offset and one offset weight per center")
     if len(stage.regions) > MAX_REGIONS:
         raise ValueError(f"at most {MAX_REGIONS} regions, got {len(stage.regions)}")
     if stage.pre.offset != 0:
@@ -79,7 +87,7 @@ def pack(stages, dtype=np.float32):
     for k, st in enumerate(stages):
         _check_stage(st)
         rows = block[1 + k * STAGE_ROWS : 1 + (k + 1) * STAGE_ROWS]
-        n = len(st.centers)
+        n = _center_rows(st)
         rows[ROW_HEADER] = (st.core, n, len(st.regions), st.newton_iters)
         _put(rows[ROW_PRE], st.pre.center, st.pre.inverse_pole)
         _put(rows[ROW_SCALE], st.pre.scale, st.post.scale)
@@ -93,6 +101,11 @@ def pack(stages, dtype=np.float32):
         for r, reg in enumerate(st.regions):
             _put(rows[ROW_REGIONS + 2 * r], reg.origin, reg.normal)
             _put(rows[ROW_REGIONS + 2 * r + 1], reg.a, reg.b)
-        for j in range(n):
-            _put(rows[ROW_CENTERS + j], st.centers[j], st.weights[j])
+        if st.core in PAIRED_CORES:
+            for j in range(len(st.centers)):
+                _put(rows[ROW_CENTERS + 2 * j], st.centers[j], st.weights[j])
+                _put(rows[ROW_CENTERS + 2 * j + 1], st.offsets[j], st.offset_weights[j])
+        else:
+            for j in range(n):
+                _put(rows[ROW_CENTERS + j], st.centers[j], st.weights[j])
     return block.astype(dtype)

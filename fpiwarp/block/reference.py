@@ -8,10 +8,14 @@ against the maps' own formulas.
 import numpy as np
 
 from .describe import describe, stage_rows
+from .tps_pairs import tps_pairs_core
 from .layout import (
     CORE_AFFINE,
     CORE_TPS,
     CORE_TPS_INVERSE,
+    CORE_TPS_PAIRS,
+    CORE_TPS_PAIRS_INVERSE,
+    PAIRED_CORES,
     ROW_CENTERS,
     ROW_L3,
     ROW_L12,
@@ -29,12 +33,16 @@ def complex_at(row, i):
     return complex(row[i], row[i + 1])
 
 
-def tps_core(p, rows, n, dtype):
-    """The TPS core of a stage and its Wirtinger derivatives at p."""
+def tps_core(p, rows, n, dtype, paired=False):
+    """The TPS core of a stage and its Wirtinger derivatives at p; ``paired``:
+    its center rows are pairs (:mod:`fpiwarp.block.tps_pairs`)."""
     l1, l2, l3 = complex_at(rows[ROW_L12], 0), complex_at(rows[ROW_L12], 2), complex_at(rows[ROW_L3], 0)
     val = l1 * p + l2 * np.conj(p) + l3
     dz = np.full_like(p, l1)
     dzb = np.full_like(p, l2)
+    if paired:
+        v, gz, gzb = tps_pairs_core(p, rows, n, dtype, ROW_CENTERS)
+        return val + v, dz + gz, dzb + gzb
     for j in range(n):
         c, b = complex_at(rows[ROW_CENTERS + j], 0), complex_at(rows[ROW_CENTERS + j], 2)
         d = p - c
@@ -103,23 +111,24 @@ def _pre_core_post(rows, kind, z, dtype):
     if kind.core == CORE_AFFINE:
         l1, l2, l3 = complex_at(rows[ROW_L12], 0), complex_at(rows[ROW_L12], 2), complex_at(rows[ROW_L3], 0)
         p = l1 * p + l2 * np.conj(p) + l3
-    elif kind.core == CORE_TPS:
-        p = tps_core(p, rows, kind.n_centers, dtype)[0]
-    elif kind.core == CORE_TPS_INVERSE:
-        p = newton(p, rows, kind.n_centers, kind.newton_iters, rows[ROW_L3, 2], dtype)
+    elif kind.core in (CORE_TPS, CORE_TPS_PAIRS):
+        p = tps_core(p, rows, kind.n_centers, dtype, kind.core in PAIRED_CORES)[0]
+    elif kind.core in (CORE_TPS_INVERSE, CORE_TPS_PAIRS_INVERSE):
+        p = newton(p, rows, kind.n_centers, kind.newton_iters, rows[ROW_L3, 2], dtype, kind.core in PAIRED_CORES)
     else:  # describe() refuses unknown cores; kept explicit like every kernel
         raise ValueError(f"unknown core {kind.core}")
     return complex_at(rows[ROW_POST], 2) + complex_at(rows[ROW_SCALE], 2) * p / (1 - complex_at(rows[ROW_POST], 0) * p)
 
 
-def newton(target, rows, n, iters, tol, dtype):
+def newton(target, rows, n, iters, tol, dtype, paired=False):
     """Solve TPS(x) = target by Newton from the inverse of the R-linear
-    part; NaN where not within ``tol`` after ``iters`` steps."""
+    part; NaN where not within ``tol`` after ``iters`` steps. ``paired``:
+    the paired TPS core."""
     mu1, mu2, mu3 = complex_at(rows[ROW_MU12], 0), complex_at(rows[ROW_MU12], 2), complex_at(rows[ROW_MU3], 0)
     x = mu1 * target + mu2 * np.conj(target) + mu3
     done = np.zeros(target.shape, dtype=bool)
     for _ in range(iters):
-        val, dz, dzb = tps_core(x, rows, n, dtype)
+        val, dz, dzb = tps_core(x, rows, n, dtype, paired)
         res = val - target
         done = np.abs(res) <= tol
         if done.all():
@@ -128,6 +137,6 @@ def newton(target, rows, n, iters, tol, dtype):
         step = (np.conj(dz) * res - dzb * np.conj(res)) / det
         x = np.where(done, x, x - step)
     else:
-        val = tps_core(x, rows, n, dtype)[0]
+        val = tps_core(x, rows, n, dtype, paired)[0]
         done = np.abs(val - target) <= tol
     return np.where(done, x, np.nan)

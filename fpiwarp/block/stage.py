@@ -56,7 +56,11 @@ class Stage:
     ``core`` is one of :data:`fpiwarp.block.layout.CORES`; ``linear`` is the
     R-linear part of the core (all of it for ``CORE_AFFINE``), ``centers``
     and ``weights`` the TPS terms, ``newton_iters`` and ``newton_tol`` the
-    device Newton of ``CORE_TPS_INVERSE``. Defaults give the identity.
+    device Newton of ``CORE_TPS_INVERSE``. For the paired cores
+    (:data:`fpiwarp.block.layout.PAIRED_CORES`) ``centers`` and ``weights``
+    are each pair's first center c and summed weight W, ``offsets`` and
+    ``offset_weights`` its second center's offset d and weight b2 (zero
+    for a center without a partner). Defaults give the identity.
     """
 
     pre: MobiusPart = MobiusPart()
@@ -66,6 +70,8 @@ class Stage:
     centers: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
     weights: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
     regions: tuple = ()
+    offsets: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
+    offset_weights: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
     newton_iters: int = 0
     newton_tol: float = 0.0
 
