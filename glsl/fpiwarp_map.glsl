@@ -75,13 +75,56 @@ vec2 fpw_cdiv(vec2 a, vec2 b) {
 }
 
 // ---- cores -----------------------------------------------------------------
-// _tps: the thin-plate spline core and its Wirtinger derivatives at p.
-void fpw_tps(vec2 p, int base, int n, out vec2 val, out vec2 dz, out vec2 dzb) {
+// tps_pairs.log_ratio: L = log(b / a) of a pair; e = b - a, s = min(a, b),
+// ls, lm the logs of min and max; the atanh series where |e| / s <= 1/4.
+float fpw_pair_log_ratio(float e, float s, float ls, float lm) {
+    float x = s > 0.0 ? abs(e) / s : 1.0;
+    float t = x / (2.0 + x);
+    float t2 = t * t;
+    float series = 2.0 * t * (1.0 + t2 * (0.33333333 + t2 * (0.2 + t2 * 0.14285714)));
+    float mag = x <= 0.25 ? series : lm - ls;
+    return e < 0.0 ? -mag : mag;
+}
+
+// tps_pairs.tps_pairs_core: the n / 2 pairs of n center rows at p, added
+// to val, dz, dzb (see fpiwarp/block/tps_pairs.py for the formulas).
+void fpw_tps_pairs(vec2 p, int base, int n, inout vec2 val, inout vec2 dz, inout vec2 dzb) {
+    for (int j = 0; j < n; j += 2) {
+        vec4 cw = fpw_rows[base + FPW_ROW_CENTERS + j];      // center c, summed weight W
+        vec4 db = fpw_rows[base + FPW_ROW_CENTERS + j + 1];  // offset d, weight b2
+        vec2 q = p - cw.xy;
+        vec2 q2 = q - db.xy;
+        float a = dot(q, q);
+        float b = dot(q2, q2);
+        float e = dot(db.xy, db.xy) - 2.0 * dot(q, db.xy);
+        float la = a > 0.0 ? log(a) : 0.0;
+        float lb = b > 0.0 ? log(b) : 0.0;
+        bool near_a = a <= b;
+        float s = near_a ? a : b;
+        float ls = near_a ? la : lb;
+        float lm = near_a ? lb : la;
+        float big_l = fpw_pair_log_ratio(e, s, ls, lm);
+        val += cw.zw * (0.5 * a * la) + db.zw * (0.5 * (e * lm + s * big_l));
+        float g1 = 0.5 * (la + 1.0);
+        float gn = 0.5 * (lm + 1.0);
+        vec2 qn = near_a ? q : q2;
+        dz += fpw_cmul(cw.zw, fpw_conj(q) * g1) + fpw_cmul(db.zw, fpw_conj(qn) * (0.5 * big_l) - fpw_conj(db.xy) * gn);
+        dzb += fpw_cmul(cw.zw, q * g1) + fpw_cmul(db.zw, qn * (0.5 * big_l) - db.xy * gn);
+    }
+}
+
+// _tps: the thin-plate spline core and its Wirtinger derivatives at p
+// (paired: the center rows are pairs, FPW_CORE_TPS_PAIRS*).
+void fpw_tps(vec2 p, int base, int n, bool paired, out vec2 val, out vec2 dz, out vec2 dzb) {
     vec4 l12 = fpw_row(base + FPW_ROW_L12);
     vec2 l3 = fpw_row(base + FPW_ROW_L3).xy;
     val = fpw_cmul(l12.xy, p) + fpw_cmul(l12.zw, fpw_conj(p)) + l3;
     dz = l12.xy;
     dzb = l12.zw;
+    if (paired) {
+        fpw_tps_pairs(p, base, n, val, dz, dzb);
+        return;
+    }
     for (int j = 0; j < n; ++j) {
         vec4 cb = fpw_rows[base + FPW_ROW_CENTERS + j];  // center c, weight b
         vec2 d = p - cb.xy;
@@ -97,14 +140,14 @@ void fpw_tps(vec2 p, int base, int n, out vec2 val, out vec2 dz, out vec2 dzb) {
 // _newton: solve TPS(x) = target from the inverse of the affine part.
 // A point stops moving once it is within tol (like the reference's
 // per-point `done`); not converged after `iters` steps gives NaN.
-vec2 fpw_newton(vec2 target, int base, int n, int iters, float tol) {
+vec2 fpw_newton(vec2 target, int base, int n, bool paired, int iters, float tol) {
     vec4 mu12 = fpw_rows[base + FPW_ROW_MU12];
     vec2 mu3 = fpw_rows[base + FPW_ROW_MU3].xy;
     vec2 x = fpw_cmul(mu12.xy, target) + fpw_cmul(mu12.zw, fpw_conj(target)) + mu3;
     vec2 val, dz, dzb;
     bool done = false;
     for (int it = 0; it < iters; ++it) {
-        fpw_tps(x, base, n, val, dz, dzb);
+        fpw_tps(x, base, n, paired, val, dz, dzb);
         vec2 res = val - target;
         done = length(res) <= tol;
         if (done) break;
@@ -113,7 +156,7 @@ vec2 fpw_newton(vec2 target, int base, int n, int iters, float tol) {
         x = x - step;
     }
     if (!done) {  // the reference's for-else: check the last iterate
-        fpw_tps(x, base, n, val, dz, dzb);
+        fpw_tps(x, base, n, paired, val, dz, dzb);
         done = length(val - target) <= tol;
     }
     return done ? x : vec2(fpw_nan());
@@ -149,11 +192,11 @@ vec2 fpw_stage_of(vec2 z, int base, int core, int n_regions) {
         vec4 l12 = fpw_row(base + FPW_ROW_L12);
         vec2 l3 = fpw_row(base + FPW_ROW_L3).xy;
         p = fpw_cmul(l12.xy, p) + fpw_cmul(l12.zw, fpw_conj(p)) + l3;
-    } else if (core == FPW_CORE_TPS) {
+    } else if (core == FPW_CORE_TPS || core == FPW_CORE_TPS_PAIRS) {
         vec2 dz, dzb;
-        fpw_tps(p, base, n, p, dz, dzb);
-    } else if (core == FPW_CORE_TPS_INVERSE) {
-        p = fpw_newton(p, base, n, iters, fpw_row(base + FPW_ROW_L3).z);
+        fpw_tps(p, base, n, core == FPW_CORE_TPS_PAIRS, p, dz, dzb);
+    } else if (core == FPW_CORE_TPS_INVERSE || core == FPW_CORE_TPS_PAIRS_INVERSE) {
+        p = fpw_newton(p, base, n, core == FPW_CORE_TPS_PAIRS_INVERSE, iters, fpw_row(base + FPW_ROW_L3).z);
     } else {
         return vec2(fpw_nan());  // a core this shader does not know: outside (the host refuses it first)
     }
@@ -434,13 +477,14 @@ vec2 fpw_stage_wirtinger(vec2 z, int base, inout vec2 dz, inout vec2 dzb) {
         vec4 l12 = fpw_row(base + FPW_ROW_L12);
         p = fpw_cmul(l12.xy, p) + fpw_cmul(l12.zw, fpw_conj(p)) + fpw_row(base + FPW_ROW_L3).xy;
         fpw_chain(l12.xy, l12.zw, sdz, sdzb);
-    } else if (core == FPW_CORE_TPS) {
-        fpw_tps(p, base, n, val, gz, gzb);
+    } else if (core == FPW_CORE_TPS || core == FPW_CORE_TPS_PAIRS) {
+        fpw_tps(p, base, n, core == FPW_CORE_TPS_PAIRS, val, gz, gzb);
         p = val;
         fpw_chain(gz, gzb, sdz, sdzb);
-    } else if (core == FPW_CORE_TPS_INVERSE) {
-        p = fpw_newton(p, base, n, iters, fpw_row(base + FPW_ROW_L3).z);
-        fpw_tps(p, base, n, val, gz, gzb);
+    } else if (core == FPW_CORE_TPS_INVERSE || core == FPW_CORE_TPS_PAIRS_INVERSE) {
+        bool paired = core == FPW_CORE_TPS_PAIRS_INVERSE;
+        p = fpw_newton(p, base, n, paired, iters, fpw_row(base + FPW_ROW_L3).z);
+        fpw_tps(p, base, n, paired, val, gz, gzb);
         float det = dot(gz, gz) - dot(gzb, gzb);
         fpw_chain(fpw_conj(gz) / det, -gzb / det, sdz, sdzb);
     } else {

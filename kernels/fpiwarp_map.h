@@ -105,14 +105,55 @@ FW_FN float fw_log(float v)
     return 2.0f * s * poly + (float)e * 0.69314718f;
 }
 
+/* ---- paired TPS terms (block/tps_pairs.py) ----------------------------- */
+/* L = log(b / a) of a pair (tps_pairs.log_ratio): e = b - a, s = min(a, b),
+ * ls, lm the logs of min and max; the atanh series where |e| / s <= 1/4 */
+FW_FN float fw_pair_log_ratio(float e, float s, float ls, float lm)
+{
+    float x = s > 0.0f ? fabs(e) / s : 1.0f;
+    float t = x / (2.0f + x), t2 = t * t;
+    float series = 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
+    float mag = x <= 0.25f ? series : lm - ls;
+    return e < 0.0f ? -mag : mag;
+}
+
+/* the n / 2 pairs of n center rows at p (tps_pairs.tps_pairs_core), added
+ * to *val, *dz, *dzb */
+FW_FN void fw_tps_pairs(fw_c p, fw_rows_t rows, int n, fw_c *val, fw_c *dz, fw_c *dzb)
+{
+    for (int j = 0; j < n; j += 2) {
+        fw_c c = fw_at(rows, FW_ROW_CENTERS + j, 0), w = fw_at(rows, FW_ROW_CENTERS + j, 2);
+        fw_c d = fw_at(rows, FW_ROW_CENTERS + j + 1, 0), b2 = fw_at(rows, FW_ROW_CENTERS + j + 1, 2);
+        fw_c q = fw_sub(p, c), q2 = fw_sub(q, d);
+        float a = fw_abs2(q), b = fw_abs2(q2);
+        float e = fw_abs2(d) - 2.0f * (q.re * d.re + q.im * d.im);
+        float la = a > 0.0f ? fw_log(a) : 0.0f, lb = b > 0.0f ? fw_log(b) : 0.0f;
+        bool near_a = a <= b;
+        float s = near_a ? a : b, ls = near_a ? la : lb, lm = near_a ? lb : la;
+        float big_l = fw_pair_log_ratio(e, s, ls, lm);
+        *val = fw_add(*val, fw_add(fw_scale(w, 0.5f * a * la), fw_scale(b2, 0.5f * (e * lm + s * big_l))));
+        float g1 = 0.5f * (la + 1.0f), gn = 0.5f * (lm + 1.0f);
+        fw_c qn = fw_select(near_a, q, q2);
+        fw_c pz = fw_sub(fw_scale(fw_conj(qn), 0.5f * big_l), fw_scale(fw_conj(d), gn));
+        fw_c pzb = fw_sub(fw_scale(qn, 0.5f * big_l), fw_scale(d, gn));
+        *dz = fw_add(*dz, fw_add(fw_mul(w, fw_scale(fw_conj(q), g1)), fw_mul(b2, pz)));
+        *dzb = fw_add(*dzb, fw_add(fw_mul(w, fw_scale(q, g1)), fw_mul(b2, pzb)));
+    }
+}
+
 /* ---- TPS core (reference.tps_core) ------------------------------------- */
-/* The TPS core at p, and its Wirtinger derivatives in *dz, *dzb. */
-FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, fw_c *dz, fw_c *dzb)
+/* The TPS core at p, and its Wirtinger derivatives in *dz, *dzb; paired:
+ * the center rows are pairs (FW_CORE_TPS_PAIRS, FW_CORE_TPS_PAIRS_INVERSE). */
+FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, bool paired, fw_c *dz, fw_c *dzb)
 {
     fw_c l1 = fw_at(rows, FW_ROW_L12, 0), l2 = fw_at(rows, FW_ROW_L12, 2), l3 = fw_at(rows, FW_ROW_L3, 0);
     fw_c val = fw_rlinear(p, l1, l2, l3);
     *dz = l1;
     *dzb = l2;
+    if (paired) {
+        fw_tps_pairs(p, rows, n, &val, dz, dzb);
+        return val;
+    }
     for (int j = 0; j < n; ++j) {
         fw_c c = fw_at(rows, FW_ROW_CENTERS + j, 0), b = fw_at(rows, FW_ROW_CENTERS + j, 2);
         fw_c d = fw_sub(p, c);
@@ -135,21 +176,21 @@ FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, fw_c *dz, fw_c *dzb)
  * loop and mixes up work-items that leave it early by a return (wrong
  * points in tests/test_backend_opencl.py's Newton test). Work-items past
  * the end of a row (padding) redo the row's last pixel, Newton included. */
-FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, int iters, float tol)
+FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters, float tol)
 {
     fw_c mu1 = fw_at(rows, FW_ROW_MU12, 0), mu2 = fw_at(rows, FW_ROW_MU12, 2), mu3 = fw_at(rows, FW_ROW_MU3, 0);
     fw_c x = fw_rlinear(target, mu1, mu2, mu3);
     fw_c dz, dzb;
     bool done = false;
     for (int k = 0; k < iters && !done; ++k) {
-        fw_c res = fw_sub(fw_tps(x, rows, n, &dz, &dzb), target);
+        fw_c res = fw_sub(fw_tps(x, rows, n, paired, &dz, &dzb), target);
         done = sqrt(fw_abs2(res)) <= tol;
         float det = fw_abs2(dz) - fw_abs2(dzb);
         fw_c step = fw_scale(fw_sub(fw_mul(fw_conj(dz), res), fw_mul(dzb, fw_conj(res))), 1.0f / det);
         x = fw_select(done, x, fw_sub(x, step));
     }
     if (!done) {
-        fw_c res = fw_sub(fw_tps(x, rows, n, &dz, &dzb), target);
+        fw_c res = fw_sub(fw_tps(x, rows, n, paired, &dz, &dzb), target);
         done = sqrt(fw_abs2(res)) <= tol;
     }
     return fw_select(done, x, fw_cx(NAN, NAN));
@@ -189,11 +230,11 @@ FW_FN fw_c fw_stage_kind(fw_rows_t rows, fw_c z, int core, int n, int n_regions,
     fw_c p = fw_div(fw_mul(fw_at(rows, FW_ROW_SCALE, 0), u), fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_PRE, 2), u)));
     if (core == FW_CORE_AFFINE) {
         p = fw_rlinear(p, fw_at(rows, FW_ROW_L12, 0), fw_at(rows, FW_ROW_L12, 2), fw_at(rows, FW_ROW_L3, 0));
-    } else if (core == FW_CORE_TPS) {
+    } else if (core == FW_CORE_TPS || core == FW_CORE_TPS_PAIRS) {
         fw_c dz, dzb;
-        p = fw_tps(p, rows, n, &dz, &dzb);
-    } else if (core == FW_CORE_TPS_INVERSE) {
-        p = fw_newton(p, rows, n, iters, rows[4 * FW_ROW_L3 + 2]);
+        p = fw_tps(p, rows, n, core == FW_CORE_TPS_PAIRS, &dz, &dzb);
+    } else if (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE) {
+        p = fw_newton(p, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, iters, rows[4 * FW_ROW_L3 + 2]);
     } else { /* a core this kernel does not know: outside (the host refuses it first) */
         p = fw_cx(NAN, NAN);
     }
@@ -294,12 +335,13 @@ FW_FN fw_c fw_stage_wirtinger_kind(fw_rows_t rows, fw_c z, fw_c *dz, fw_c *dzb, 
         fw_c l1 = fw_at(rows, FW_ROW_L12, 0), l2 = fw_at(rows, FW_ROW_L12, 2);
         p = fw_rlinear(p, l1, l2, fw_at(rows, FW_ROW_L3, 0));
         fw_chain(l1, l2, &sdz, &sdzb);
-    } else if (core == FW_CORE_TPS) {
-        p = fw_tps(p, rows, n, &gz, &gzb);
+    } else if (core == FW_CORE_TPS || core == FW_CORE_TPS_PAIRS) {
+        p = fw_tps(p, rows, n, core == FW_CORE_TPS_PAIRS, &gz, &gzb);
         fw_chain(gz, gzb, &sdz, &sdzb);
-    } else if (core == FW_CORE_TPS_INVERSE) {
-        p = fw_newton(p, rows, n, iters, rows[4 * FW_ROW_L3 + 2]);
-        fw_tps(p, rows, n, &gz, &gzb);
+    } else if (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE) {
+        bool paired = core == FW_CORE_TPS_PAIRS_INVERSE;
+        p = fw_newton(p, rows, n, paired, iters, rows[4 * FW_ROW_L3 + 2]);
+        fw_tps(p, rows, n, paired, &gz, &gzb);
         float det = fw_abs2(gz) - fw_abs2(gzb);
         fw_chain(fw_scale(fw_conj(gz), 1.0f / det), fw_scale(gzb, -1.0f / det), &sdz, &sdzb);
     } else {

@@ -19,6 +19,8 @@ from .warp_map import (
     CORE_AFFINE,
     CORE_TPS,
     CORE_TPS_INVERSE,
+    CORE_TPS_PAIRS,
+    CORE_TPS_PAIRS_INVERSE,
     ROW_HEADER,
     ROW_L3,
     ROW_L12,
@@ -101,15 +103,16 @@ def stage_wirtinger(blk: wp.array(dtype=wp.vec4), s0: int, z: wp.vec2):
         a = chain_dz(l1, l2, dz, dzb)
         dzb = chain_dzb(l1, l2, dz, dzb)
         dz = a
-    elif core == CORE_TPS:
-        val, gz, gzb = tps_wirtinger(blk, s0, n, p)
+    elif core == CORE_TPS or core == CORE_TPS_PAIRS:
+        val, gz, gzb = tps_wirtinger(blk, s0, n, p, core == CORE_TPS_PAIRS)
         p = val
         a = chain_dz(gz, gzb, dz, dzb)
         dzb = chain_dzb(gz, gzb, dz, dzb)
         dz = a
-    elif core == CORE_TPS_INVERSE:
-        p = tps_newton(blk, s0, n, iters, p)
-        val, gz, gzb = tps_wirtinger(blk, s0, n, p)
+    elif core == CORE_TPS_INVERSE or core == CORE_TPS_PAIRS_INVERSE:
+        paired = core == CORE_TPS_PAIRS_INVERSE
+        p = tps_newton(blk, s0, n, iters, p, paired)
+        val, gz, gzb = tps_wirtinger(blk, s0, n, p, paired)
         det = abs2(gz) - abs2(gzb)
         iz = conj(gz) / det
         izb = gzb * (-1.0 / det)

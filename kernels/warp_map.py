@@ -42,6 +42,8 @@ ROW_CENTERS = wp.constant(CONTRACT["ROW_CENTERS"])
 CORE_AFFINE = wp.constant(CONTRACT["CORE_AFFINE"])
 CORE_TPS = wp.constant(CONTRACT["CORE_TPS"])
 CORE_TPS_INVERSE = wp.constant(CONTRACT["CORE_TPS_INVERSE"])
+CORE_TPS_PAIRS = wp.constant(CONTRACT["CORE_TPS_PAIRS"])
+CORE_TPS_PAIRS_INVERSE = wp.constant(CONTRACT["CORE_TPS_PAIRS_INVERSE"])
 MODE_CONSTANT = wp.constant(CONTRACT["MODE_CONSTANT"])
 MODE_EDGE = wp.constant(CONTRACT["MODE_EDGE"])
 MODE_REFLECT = wp.constant(CONTRACT["MODE_REFLECT"])
@@ -92,12 +94,79 @@ def abs2(a: wp.vec2):
 
 
 @wp.func
-def tps_value(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
-    """TPS core value at p: sum_j b_j r² log r + l1 p + l2 conj(p) + l3."""
+def pair_log_ratio(e: float, s: float, ls: float, lm: float):
+    """L = log(b / a) of a TPS pair (fpiwarp.block.tps_pairs.log_ratio)."""
+    x = float(1.0)  # noqa: UP018 - a Warp variable, not a literal constant
+    if s > 0.0:
+        x = wp.abs(e) / s
+    t = x / (2.0 + x)
+    t2 = t * t
+    mag = lm - ls
+    if x <= 0.25:
+        mag = 2.0 * t * (1.0 + t2 * (0.33333333 + t2 * (0.2 + t2 * 0.14285714)))
+    if e < 0.0:
+        mag = -mag
+    return mag
+
+
+@wp.func
+def log0(v: float):
+    """log v, 0 where v == 0 (a TPS term vanishes at its center)."""
+    lg = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+    if v > 0.0:
+        lg = wp.log(v)
+    return lg
+
+
+@wp.func
+def tps_pairs_sum(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
+    """The paired TPS terms at p and their Wirtinger derivatives
+    (fpiwarp.block.tps_pairs.tps_pairs_core): n center rows, n / 2 pairs."""
+    val = wp.vec2(0.0, 0.0)
+    dz = wp.vec2(0.0, 0.0)
+    dzb = wp.vec2(0.0, 0.0)
+    for jj in range(n // 2):
+        r1 = blk[s0 + ROW_CENTERS + 2 * jj]
+        r2 = blk[s0 + ROW_CENTERS + 2 * jj + 1]
+        w = hi(r1)
+        d = lo(r2)
+        b2 = hi(r2)
+        q = p - lo(r1)
+        q2 = q - d
+        a = abs2(q)
+        b = abs2(q2)
+        e = abs2(d) - 2.0 * (q[0] * d[0] + q[1] * d[1])
+        la = log0(a)
+        lb = log0(b)
+        s = b
+        ls = lb
+        lm = la
+        qn = q2
+        if a <= b:
+            s = a
+            ls = la
+            lm = lb
+            qn = q
+        big_l = pair_log_ratio(e, s, ls, lm)
+        val = val + w * (0.5 * a * la) + b2 * (0.5 * (e * lm + s * big_l))
+        g1 = 0.5 * (la + 1.0)
+        gn = 0.5 * (lm + 1.0)  # g(b) where a <= b, else g(a)
+        dz = dz + cmul(w, conj(q) * g1) + cmul(b2, conj(qn) * (0.5 * big_l) - conj(d) * gn)
+        dzb = dzb + cmul(w, q * g1) + cmul(b2, qn * (0.5 * big_l) - d * gn)
+    return val, dz, dzb
+
+
+@wp.func
+def tps_value(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2, paired: bool):
+    """TPS core value at p: sum_j b_j r² log r + l1 p + l2 conj(p) + l3
+    (``paired``: the paired terms)."""
     l1 = lo(blk[s0 + ROW_L12])
     l2 = hi(blk[s0 + ROW_L12])
     l3 = lo(blk[s0 + ROW_L3])
     val = cmul(l1, p) + cmul(l2, conj(p)) + l3
+    if paired:
+        pv, pdz, pdzb = tps_pairs_sum(blk, s0, n, p)
+        return val + pv
     for j in range(n):
         row = blk[s0 + ROW_CENTERS + j]
         d = p - lo(row)
@@ -110,14 +179,18 @@ def tps_value(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
 
 
 @wp.func
-def tps_wirtinger(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
-    """TPS core value and its Wirtinger derivatives f_z, f_zbar at p."""
+def tps_wirtinger(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2, paired: bool):
+    """TPS core value and its Wirtinger derivatives f_z, f_zbar at p
+    (``paired``: the paired terms)."""
     l1 = lo(blk[s0 + ROW_L12])
     l2 = hi(blk[s0 + ROW_L12])
     l3 = lo(blk[s0 + ROW_L3])
     val = cmul(l1, p) + cmul(l2, conj(p)) + l3
     dz = l1
     dzb = l2
+    if paired:
+        pv, pdz, pdzb = tps_pairs_sum(blk, s0, n, p)
+        return val + pv, dz + pdz, dzb + pdzb
     for j in range(n):
         row = blk[s0 + ROW_CENTERS + j]
         b = hi(row)
@@ -134,7 +207,7 @@ def tps_wirtinger(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
 
 
 @wp.func
-def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2):
+def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2, paired: bool):
     """Solve TPS(x) = target by Newton from the inverse of the R-linear part;
     NaN when not within newton_tol after ``iters`` steps."""
     tol = blk[s0 + ROW_L3][2]
@@ -144,14 +217,14 @@ def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target
     x = cmul(mu1, target) + cmul(mu2, conj(target)) + mu3
     nan2 = wp.vec2(wp.nan, wp.nan)
     for _k in range(iters):
-        val, dz, dzb = tps_wirtinger(blk, s0, n, x)
+        val, dz, dzb = tps_wirtinger(blk, s0, n, x, paired)
         res = val - target
         if wp.sqrt(abs2(res)) <= tol:
             return x
         det = abs2(dz) - abs2(dzb)
         step = (cmul(conj(dz), res) - cmul(dzb, conj(res))) / det
         x = x - step
-    if wp.sqrt(abs2(tps_value(blk, s0, n, x) - target)) <= tol:
+    if wp.sqrt(abs2(tps_value(blk, s0, n, x, paired) - target)) <= tol:
         return x
     return nan2
 
@@ -181,10 +254,10 @@ def evaluate_stage(blk: wp.array(dtype=wp.vec4), s0: int, z: wp.vec2):
     p = cdiv(cmul(lo(blk[s0 + ROW_SCALE]), u), wp.vec2(1.0, 0.0) - cmul(hi(blk[s0 + ROW_PRE]), u))
     if core == CORE_AFFINE:
         p = cmul(lo(blk[s0 + ROW_L12]), p) + cmul(hi(blk[s0 + ROW_L12]), conj(p)) + lo(blk[s0 + ROW_L3])
-    elif core == CORE_TPS:
-        p = tps_value(blk, s0, n, p)
-    elif core == CORE_TPS_INVERSE:
-        p = tps_newton(blk, s0, n, iters, p)
+    elif core == CORE_TPS or core == CORE_TPS_PAIRS:
+        p = tps_value(blk, s0, n, p, core == CORE_TPS_PAIRS)
+    elif core == CORE_TPS_INVERSE or core == CORE_TPS_PAIRS_INVERSE:
+        p = tps_newton(blk, s0, n, iters, p, core == CORE_TPS_PAIRS_INVERSE)
     else:  # a core this kernel does not know: outside (the host refuses it first)
         return wp.vec2(wp.nan, wp.nan)
     post = blk[s0 + ROW_POST]

@@ -1,5 +1,5 @@
 """The paired TPS core of the block (``CORE_TPS_PAIRS``): the reference every
-kernel mirrors (OpenCL ``fw_tps_pairs``, Warp ``tps_pairs``, GLSL
+kernel mirrors (OpenCL ``fw_tps_pairs``, Warp ``tps_pairs_sum``, GLSL
 ``fpw_tps_pairs``).
 
 A pair (rows in :mod:`fpiwarp.block.layout`) is a center c with the summed
