@@ -11,7 +11,16 @@ import numpy as np
 
 from fpiwarp import FPI, Mobius, RLinear, Transform
 from fpiwarp.backends import numpy_backend
-from fpiwarp.block import CORE_TPS, CORE_TPS_INVERSE, LinearPart, Region, Stage, evaluate
+from fpiwarp.block import (
+    CORE_TPS,
+    CORE_TPS_INVERSE,
+    CORE_TPS_PAIRS,
+    CORE_TPS_PAIRS_INVERSE,
+    LinearPart,
+    Region,
+    Stage,
+    evaluate,
+)
 from fpiwarp.block.jacobian import wirtinger
 
 RTOL = 1e-5
@@ -62,6 +71,23 @@ def tps_inverse_stage(iters=20, tol=1e-4):
     )
 
 
+# The same centers as pairs (CORE_TPS_PAIRS): each with a partner 0.05 away
+# and weights of 2e-3 (nearly opposite within the pair: W is the small
+# _WEIGHTS), except the last, which has none (d = 0, b2 = 0).
+_OFFSETS = np.array([0.05j, -0.05, 0.03 + 0.04j, 0.05, -0.04j, 0j])
+_OFFSET_WEIGHTS = np.array([2e-3 - 1e-3j, -2e-3, 1e-3j, 2e-3 + 2e-3j, -1e-3 + 1e-3j, 0j])
+
+
+def tps_pairs_stage():
+    return Stage(linear=_LINEAR, core=CORE_TPS_PAIRS, centers=_CENTERS, weights=_WEIGHTS, offsets=_OFFSETS,
+                 offset_weights=_OFFSET_WEIGHTS)
+
+
+def tps_pairs_inverse_stage(iters=20, tol=1e-4):
+    return Stage(linear=_LINEAR, core=CORE_TPS_PAIRS_INVERSE, centers=_CENTERS, weights=_WEIGHTS, offsets=_OFFSETS,
+                 offset_weights=_OFFSET_WEIGHTS, newton_iters=iters, newton_tol=tol)
+
+
 _REGIONS = (
     Region(origin=52 + 0j, normal=1 + 0j, a=1 + 0j, b=2 + 1j),  # x > 52: shift
     Region(origin=0 + 6j, normal=-1j, a=0.9 + 0.1j, b=1 - 2j),  # y < 6: similarity
@@ -80,6 +106,10 @@ def region_inverse_stage():
 
 def tps_map():
     return Staged([tps_stage()], [tps_inverse_stage()])
+
+
+def tps_pairs_map():
+    return Staged([tps_pairs_stage()], [tps_pairs_inverse_stage()])
 
 
 def region_map():
@@ -107,7 +137,7 @@ def newton_atol(transform):
     """A Newton inverse is only defined to its tolerance: the reference stops
     once the residual is <= newton_tol, the device may take one step more.
     Residual to position: the TPS here has |f_z| - |f_zbar| >= 0.9."""
-    tols = [st.newton_tol for st in transform.stages() if st.core == CORE_TPS_INVERSE]
+    tols = [st.newton_tol for st in transform.stages() if st.core in (CORE_TPS_INVERSE, CORE_TPS_PAIRS_INVERSE)]
     return max(tols, default=0.0) / 0.9
 
 
@@ -120,6 +150,8 @@ MAPS = {
     "tps": tps_map,
     "tps_inverse": lambda: tps_map().inverse,
     "compound_of_stages": lambda: Staged([tps_stage(), *sample_fpi().stages(), tps_inverse_stage()]),
+    "tps_pairs": tps_pairs_map,
+    "tps_pairs_inverse": lambda: tps_pairs_map().inverse,
 }
 
 

@@ -119,8 +119,10 @@ def test_describe_names_the_kind_of_every_map_family():
     assert compound.is_short and compound.n_stages == 3 and compound.constant_dilation is None
     c = ConstrainedFPI(SRC, DST, edges=(3, 1))
     tps, inv = B.describe(c.params()), B.describe(c.inverse.params())
-    assert tps.stages[0].core == B.CORE_TPS and tps.stages[0].n_centers > 0 and not tps.is_short
-    assert inv.stages[0].core == B.CORE_TPS_INVERSE and inv.stages[0].newton_iters > 0
+    # its edge points and their offset copies travel as pairs: two rows each
+    assert tps.stages[0].core == B.CORE_TPS_PAIRS and tps.stages[0].n_centers == 4 * c.points_per_edge
+    assert not tps.is_short
+    assert inv.stages[0].core == B.CORE_TPS_PAIRS_INVERSE and inv.stages[0].newton_iters > 0
     assert tps.constant_dilation is None
     local = B.describe(LocalDeformation(SRC, DST, edges=(3, 1)).params())
     assert local.stages[0].n_regions == 2 and not local.is_short and local.constant_dilation is None
@@ -225,9 +227,10 @@ def test_every_core_has_its_own_branch_in_every_kernel():
     for kind, name, prefix in (("kernels", "fpiwarp_map.h", "FW_"), ("kernels", "warp_map.py", ""),
                                ("glsl", "fpiwarp_map.glsl", "FPW_")):
         text = source(kind, name)
-        for core in ("CORE_AFFINE", "CORE_TPS", "CORE_TPS_INVERSE"):
+        for core in ("CORE_AFFINE", "CORE_TPS", "CORE_TPS_INVERSE", "CORE_TPS_PAIRS", "CORE_TPS_PAIRS_INVERSE"):
             assert re.search(rf"core == {prefix}{core}\b", text), f"{name}: no branch for {core}"
-    assert set(B.CORES.values()) == {B.CORE_AFFINE, B.CORE_TPS, B.CORE_TPS_INVERSE}
+    assert set(B.CORES.values()) == {B.CORE_AFFINE, B.CORE_TPS, B.CORE_TPS_INVERSE, B.CORE_TPS_PAIRS,
+                                     B.CORE_TPS_PAIRS_INVERSE}
 
 
 def test_reference_refuses_a_stage_kind_it_does_not_know():
