@@ -1,14 +1,14 @@
 """Seams of the local deformations: how closely the constrained FPI follows
 each constrained edge's similarity, before and after, in one run.
 
-``python3 -m benchmarks.seams [--n 320] [--seed 16] [--grid 41] [--out DIR]``
+``python3 -m benchmarks.seams [--n 320] [--seed 16] [--grid 41] [--out DIR] [--no-backends]``
 
 Configurations (seeded): src is the unit square centered at 0 with every
 corner moved by 0.3 N(0, 1), dst is src with every corner moved by
 0.3 N(0, 1) again, constrained edges (0, 2) or (1, 3) with equal odds;
 kept when both quads are valid, a LocalDeformation can be built and
-today's map (10 equally spread points per edge, δ = 0.01, the paper's
-construction) has no fold-over on a grid x grid grid spanning src.
+the old default map (10 equally spread points per edge, δ = 0.01, the
+paper's construction) has no fold-over on a grid x grid grid spanning src.
 
 Per variant of ConstrainedFPI, over the same configurations:
 
@@ -18,7 +18,7 @@ Per variant of ConstrainedFPI, over the same configurations:
   way between points 1e-9 of the size inside and outside the edge;
 - corner error: max |f(z_i) - w_i| / size of dst;
 - maximal conformal distortion K on the grid (Fig. 11 style: its maximum
-  over all configurations, and per configuration the ratio to today's:
+  over all configurations, and per configuration the ratio to the old default's:
   median, p90, max, count above 1.01);
 - fold-overs: configurations whose Jacobian determinant is <= 0 somewhere
   on the grid;
@@ -27,7 +27,9 @@ Per variant of ConstrainedFPI, over the same configurations:
   edges' lines 0.05 and 0.25 edge lengths past the corners;
 - the float32 parameter block (what the kernels evaluate): forward error
   and the share of points the float32 Newton inverse leaves unsolved;
-- host evaluation time per point, forward and Newton inverse.
+- host evaluation time per point, forward and Newton inverse;
+- the speed of the old and the default map on every backend
+  (:mod:`benchmarks.seams_speed`).
 
 Writes seams.md and seams.json into DIR (default: benchmarks/results).
 """
@@ -44,19 +46,23 @@ from fpiwarp._constrained import edge_similarity
 from fpiwarp.metrics import grid, jacobian_determinant
 from fpiwarp.params import evaluate
 
+from .seams_speed import backend_speed
+from .seams_speed import markdown as speed_markdown
+
 DEFAULT_OUT = Path(__file__).resolve().parent / "results"
 SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
 
-#: (label, ConstrainedFPI keywords); the first is the baseline.
+#: (label, ConstrainedFPI keywords); the first is the baseline, the old
+#: default (the paper's construction). PLAIN: the same map with its block
+#: packed as plain TPS terms (no pairs), to show what float32 loses then.
+PLAIN = "_plain"
 VARIANTS = [
-    ("today: 10 uniform, δ 0.01", dict(points_per_edge=10, spacing="uniform", delta=0.01)),
-    ("16 uniform, δ 0.01", dict(points_per_edge=16, spacing="uniform", delta=0.01)),
+    ("before: 10 uniform, δ 0.01 (paper's, old default)", dict(points_per_edge=10, spacing="uniform", delta=0.01)),
     ("16 graded, δ 0.01", dict(points_per_edge=16, spacing="graded", delta=0.01)),
-    ("16 adaptive, δ 0.01 (opt-in)", dict(points_per_edge=16, spacing="adaptive", delta=0.01)),
-    ("16 adaptive, δ 0.006", dict(points_per_edge=16, spacing="adaptive", delta=0.006)),
+    ("16 adaptive, δ 0.01 (old opt-in)", dict(points_per_edge=16, spacing="adaptive", delta=0.01)),
     ("16 adaptive, δ 0.004", dict(points_per_edge=16, spacing="adaptive", delta=0.004)),
-    ("16 adaptive, δ 0.002", dict(points_per_edge=16, spacing="adaptive", delta=0.002)),
-    ("10 uniform, δ 0.002", dict(points_per_edge=10, spacing="uniform", delta=0.002)),
+    ("after: default (16 adaptive, δ 0.002, paired block)", dict()),
+    ("default, block as plain terms", {PLAIN: True}),
 ]
 
 
@@ -96,7 +102,7 @@ def edge_deviation(f, src, dst, edges, n=401):
 
 def local_jump(src, dst, edges, kw, n=401):
     """Largest |L(p + eps n) - L(p - eps n)| / edge length across the edges."""
-    loc = LocalDeformation(src, dst, edges, **kw)
+    loc = LocalDeformation(src, dst, edges, **{k: v for k, v in kw.items() if k != PLAIN})
     z, w = _c(src), _c(dst)
     eps = 1e-9 * float(np.max(np.abs(z - z.mean())))
     t = np.linspace(0.0, 1.0, n)[1:-1]
@@ -145,10 +151,14 @@ def float32_block(f, src, dst, n=25):
 def measure(configs, kw, grid_n):
     dev, jump, corner, kmax, folds, times = [], [], [], [], 0, []
     near, far, f32, unsolved, packed = [], [], [], [], []
+    plain = kw.get(PLAIN, False)
+    kw = {k: v for k, v in kw.items() if k != PLAIN}
     for src, dst, edges in configs:
         t0 = time.perf_counter()
         f = ConstrainedFPI(src, dst, edges, **kw)
         times.append(time.perf_counter() - t0)
+        if plain:
+            f.tps.partner = None  # the block as plain terms (host map unchanged)
         dev.append(edge_deviation(f, src, dst, edges))
         jump.append(local_jump(src, dst, edges, kw))
         size = float(np.max(np.abs(_c(dst) - _c(dst).mean())))
@@ -172,7 +182,7 @@ def measure(configs, kw, grid_n):
 def eval_speed(kw, n_points=1 << 15, repeats=3):
     """Host evaluation time of the forward map and its Newton inverse."""
     src, dst = SQUARE, SQUARE + [[0.05, 0.02], [-0.03, 0.04], [0.1, -0.05], [0.0, 0.03]]
-    f = ConstrainedFPI(src, dst, (0, 2), **kw)
+    f = ConstrainedFPI(src, dst, (0, 2), **{k: v for k, v in kw.items() if k != PLAIN})
     rng = np.random.default_rng(0)
     pts = rng.uniform(-0.45, 0.45, (n_points, 2))
     out = {}
@@ -208,7 +218,7 @@ def run(n=320, seed=16, grid_n=41, log=print):
             float32_err_max=m["f32"], newton32_unsolved_max=m["unsolved"], packed_err_max=m["packed"],
         )
         big = base["kmax"] >= 16
-        row["kratio_max_today_below_16"] = float(ratio[~big].max())
+        row["kratio_max_before_below_16"] = float(ratio[~big].max())
         row.update({f"ns_per_point_{k}": v for k, v in eval_speed(kw).items()})
         rows.append(row)
         log(f"{label}: dev {row['dev_median']:.1e}/{row['dev_p90']:.1e}/{row['dev_max']:.1e}, "
@@ -222,7 +232,7 @@ def markdown(result):
         "# Constrained edges: deviation from their similarities",
         "",
         f"{result['n']} random fold-free configurations (seed {result['seed']}), distortion on a "
-        f"{result['grid']}² grid over src; K ratio: per configuration, to today's.",
+        f"{result['grid']}² grid over src; K ratio: per configuration, to the old default's (the paper's construction).",
         "",
         "| variant | centers | dev median | dev p90 | dev max | > 1e-3 | jump max | corner err "
         "| K max | K ratio median | p90 | max | > 1.01 | fold-overs | fit ms | ns/pt fwd | ns/pt inv |",
@@ -238,20 +248,20 @@ def markdown(result):
         )
     lines += [
         "",
-        "K ratio max where today's K < 16 (the rest are near-degenerate), the jump of",
+        "K ratio max where the old default's K < 16 (the rest are near-degenerate), the jump of",
         "LocalDeformation on the constrained edges' lines beyond the free edges (0.05 and",
         "0.25 edge lengths past a corner, median / max, relative to the edge length), and the",
         "float32 block (what the kernels evaluate): largest error of its packed parameters evaluated",
         "in float64 and of its float32 evaluation, relative to the size of dst, and the largest",
         "fraction of points the float32 Newton inverse leaves unsolved.",
         "",
-        "| variant | K ratio max (today K < 16) | beyond 0.05 | beyond 0.25 | packed params err | float32 fwd err "
+        "| variant | K ratio max (old K < 16) | beyond 0.05 | beyond 0.25 | packed params err | float32 fwd err "
         "| f32 Newton unsolved |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in result["rows"]:
         lines.append(
-            f"| {r['variant']} | {r['kratio_max_today_below_16']:.3f} | "
+            f"| {r['variant']} | {r['kratio_max_before_below_16']:.3f} | "
             f"{r['beyond_05_median']:.1e} / {r['beyond_05_max']:.1e} | "
             f"{r['beyond_25_median']:.1e} / {r['beyond_25_max']:.1e} | {r['packed_err_max']:.1e} | "
             f"{r['float32_err_max']:.1e} | "
@@ -266,10 +276,16 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=16)
     ap.add_argument("--grid", type=int, default=41)
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    ap.add_argument("--no-backends", action="store_true", help="skip the per-backend speed table")
     args = ap.parse_args(argv)
     result = run(args.n, args.seed, args.grid)
+    if not args.no_backends:
+        result["backend_speed"] = backend_speed()
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "seams.md").write_text(markdown(result))
+    text = markdown(result)
+    if "backend_speed" in result:
+        text += "\n" + speed_markdown(result["backend_speed"])
+    (args.out / "seams.md").write_text(text)
     (args.out / "seams.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
 
 

@@ -108,31 +108,34 @@ class ConstrainedFPI(Transform):
         Opposite ((0, 2), (1, 3)) or adjacent. Adjacent edges share one
         similarity: dst must be src under one similarity at their three
         corners, or ValueError.
-    points_per_edge : int
+    points_per_edge : int or None
         K, points spread along each constrained edge (ends included);
         the spline gets 4 K centers, so 2 <= K <= 16 (16: the block's 64).
+        None (default): as many as the block holds as pairs (an edge point
+        and its offset copy in two rows, see :mod:`fpiwarp.block.layout`):
+        16 for opposite edges, 15 for adjacent ones (their free corner and
+        the shared corner's second offset copy take a pair each). Adjacent
+        edges with K = 16 are packed as plain terms, which float32
+        evaluates less exactly for small δ.
     delta : float
-        δ of eq. 15, the relative distance of the offset points (the
-        paper's figures: 0.01). With the adaptive spacing, smaller
-        follows the edges closer and distorts less (0.002: 6.0e-4 at
-        most, maximal distortion about the default's; see
-        benchmarks/seams.py), but the spline's weights grow like 1 / δ
-        and rounding them and the centers to the block's float32 then
-        costs more than the few 1e-6 (relative) the kernels are held to.
-    spacing : "uniform", "graded" or "adaptive"
-        Where the K points sit along each edge. "uniform" (default) is the
-        paper's equal spacing; "adaptive" re-spaces them from the measured
-        deviation so it is about equal between all neighbours
-        (``fpiwarp._constraint_fit.fit_spline``). Measured over 320 random fold-free
+        δ of eq. 15, the relative distance of the offset points (default
+        0.002; the paper's figures: 0.01). Smaller follows the edges
+        closer and distorts less; the spline's weights grow like 1 / δ,
+        which the block's paired terms carry to the kernels without the
+        float32 cancellation plain terms would suffer.
+    spacing : "adaptive", "graded" or "uniform"
+        Where the K points sit along each edge. "adaptive" (default)
+        re-spaces them from the measured deviation so it is about equal
+        between all neighbours (``fpiwarp._constraint_fit.fit_spline``),
+        falling back to plainer spacings where that would fold the map
+        over; "uniform" is the paper's equal spacing (the paper's
+        construction: ``points_per_edge=10, delta=0.01,
+        spacing="uniform"``). Measured over 320 random fold-free
         configurations (benchmarks/seams.py), deviation from the edges'
         similarities relative to the edge length, median / p90 / max:
-        default 2.5e-3 / 5.2e-3 / 2.0e-2; points_per_edge=16,
-        spacing="adaptive": 1.9e-4 / 4.1e-4 / 1.4e-3, at the price of more
-        distortion where the map is strained (maximal K per configuration
-        1.02 times the default's, median; 1.09, p90). It is not the
-        default because its closely spaced centers make the float32
-        parameter block less exact than the kernels are held to in some
-        configurations (tests/test_local.py, block against host).
+        the defaults 1.1e-4 / 2.3e-4 / 6.0e-4; the paper's construction
+        2.5e-3 / 5.2e-3 / 2.0e-2. Maximal conformal distortion per
+        configuration: median 0.998 times the paper's construction's.
 
     Attributes
     ----------
@@ -172,13 +175,13 @@ class ConstrainedFPI(Transform):
         src: ArrayLike,
         dst: ArrayLike,
         edges: tuple[int, int],
-        points_per_edge: int = 10,
-        delta: float = 0.01,
-        spacing: str = "uniform",
+        points_per_edge: int | None = None,
+        delta: float = 0.002,
+        spacing: str = "adaptive",
     ):
         z, w, flip = check_quad_pair(src, dst)
         edges, kind = normalize_edges(edges)
-        k = _check_points_per_edge(points_per_edge)
+        k = _check_points_per_edge(points_per_edge, kind)
         delta = float(delta)
         if not (np.isfinite(delta) and delta > 0):
             raise ConstraintError(f"delta must be a positive number, got {delta!r}")
@@ -281,9 +284,16 @@ def as_mobius(t):
     return None
 
 
-def _check_points_per_edge(k):
+#: points_per_edge=None: the most whose constraint points the block holds as
+#: pairs (two rows each): 4 K rows for opposite edges, 4 K + 2 for adjacent ones.
+PAIRED_POINTS = {"opposite": MAX_CENTERS // 4, "adjacent": MAX_CENTERS // 4 - 1}
+
+
+def _check_points_per_edge(k, kind):
+    if k is None:
+        return PAIRED_POINTS[kind]
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-        raise ArgumentTypeError(f"points_per_edge must be an int, got {type(k).__name__}")
+        raise ArgumentTypeError(f"points_per_edge must be an int or None, got {type(k).__name__}")
     k = int(k)
     kmax = MAX_CENTERS // 4
     if not 2 <= k <= kmax:

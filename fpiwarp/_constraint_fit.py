@@ -13,8 +13,10 @@ between the Möbius images of the points.
 import numpy as np
 
 from ._errors import ArgumentError
+from ._foldover import worst_fold
 from ._quad import signed_area
 from ._tps import ThinPlateSpline
+from ._transform import chain
 
 
 def edge_similarity(z, w, k):
@@ -68,9 +70,9 @@ ADAPT_PASSES = 4
 ADAPT_SAMPLES = 8
 ADAPT_MIX = 0.15
 #: "adaptive": density caps (see respace) tried in turn where the spacing
-#: folds the map over, and the grid on which fold-overs are looked for.
+#: folds the map over (by the fold test of :mod:`fpiwarp._foldover`, the
+#: one ConstrainedFPI refuses a fit by).
 ADAPT_CAPS = (None, 3.0, 2.0)
-FOLD_GRID = 61
 PAPER = "paper's: 10 equally spread points, delta 0.01"
 
 
@@ -157,17 +159,24 @@ def _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap):
     return ts
 
 
-def folds(tps, m_src, z, n=FOLD_GRID):
-    """Does m_W⁻¹ ∘ tps ∘ m_src fold over somewhere on an n x n bilinear
-    grid spanning the counter-clockwise quad z (boundary included)? The
-    Möbius maps keep orientation, so the sign of the spline's Jacobian
-    decides."""
-    s = np.linspace(0.0, 1.0, n)
-    u, v = np.meshgrid(s, s)
-    p = (1 - v) * ((1 - u) * z[0] + u * z[1]) + v * ((1 - u) * z[3] + u * z[2])
+class _Composed:
+    """m_W⁻¹ ∘ tps ∘ m_Z, just enough of a map for the fold test."""
+
+    def __init__(self, m_src, tps, m_inv):
+        self.parts = (m_src, tps, m_inv)
+
+    def wirtinger(self, p):
+        w, fz, fzb = self.parts[0].wirtinger(p)
+        for part in self.parts[1:]:
+            w, fz, fzb = chain(part, w, fz, fzb)
+        return w, fz, fzb
+
+
+def folds(tps, m_src, m_dst, z):
+    """Does m_W⁻¹ ∘ tps ∘ m_Z fold over the counter-clockwise quad z, by
+    the test ConstrainedFPI refuses a fit by (:func:`fpiwarp._foldover.worst_fold`)?"""
     with np.errstate(all="ignore"):
-        _, fz, fzb = tps.wirtinger(m_src.map_complex(p.reshape(-1)))
-    return not np.all(np.abs(fz) ** 2 - np.abs(fzb) ** 2 > 0)
+        return worst_fold(_Composed(m_src, tps, m_dst.inverse), z) is not None
 
 
 def fit_spline(z, w, m_src, m_dst, edges, kind, k, delta, spacing="adaptive"):
@@ -208,6 +217,6 @@ def fit_spline(z, w, m_src, m_dst, edges, kind, k, delta, spacing="adaptive"):
         tps, pz, pw = _fit_phi(z, w, m_src, m_dst, edges, kind, k, d, ts)
         if first is None:
             first = (tps, pz, pw, ts, used)
-        if len(tries) == 1 or not folds(tps, m_src, z):
+        if len(tries) == 1 or not folds(tps, m_src, m_dst, z):
             return tps, pz, pw, ts, used
     return first

@@ -118,9 +118,9 @@ class LocalDeformation(Transform):
         src: ArrayLike,
         dst: ArrayLike,
         edges: tuple[int, int],
-        points_per_edge: int = 10,
-        delta: float = 0.01,
-        spacing: str = "uniform",
+        points_per_edge: int | None = None,
+        delta: float = 0.002,
+        spacing: str = "adaptive",
     ):
         inner = ConstrainedFPI(
             src, dst, edges=edges, points_per_edge=points_per_edge, delta=delta, spacing=spacing

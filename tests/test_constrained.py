@@ -11,7 +11,7 @@ from fpiwarp import ConstrainedFPI, FoldOverError, InverseNotConvergedError, Thi
 from fpiwarp._foldover import inside_quad, worst_fold
 from fpiwarp._quad import check_quad, signed_area
 from fpiwarp.metrics import grid, jacobian_determinant
-from fpiwarp.params import MAX_CENTERS, evaluate
+from fpiwarp.params import CORE_TPS_PAIRS, MAX_CENTERS, evaluate
 from fpiwarp.spec import SpecError, build_transform
 
 SETTINGS = settings(max_examples=40, deadline=None)
@@ -217,7 +217,11 @@ def test_points_per_edge_is_checked_against_the_block_limit():
     kmax = MAX_CENTERS // 4
     f = ConstrainedFPI(RECT, rotate_edge(RECT, 1, 10), edges=(3, 1), points_per_edge=kmax)
     assert len(f.tps.centers) == MAX_CENTERS
-    assert len(ConstrainedFPI(RECT, RECT, edges=(0, 1)).tps.centers) == 40
+    # the default: as many points as the block holds as pairs (two rows each)
+    adjacent, opposite = ConstrainedFPI(RECT, RECT, edges=(0, 1)), ConstrainedFPI(RECT, RECT, edges=(0, 2))
+    assert (adjacent.points_per_edge, opposite.points_per_edge) == (kmax - 1, kmax)
+    assert adjacent.stage().core == opposite.stage().core == CORE_TPS_PAIRS
+    assert fpiwarp.block.describe(adjacent.params()).stages[0].n_centers == MAX_CENTERS - 2
     with pytest.raises(ValueError, match=f"at most {MAX_CENTERS}"):
         ConstrainedFPI(RECT, RECT, edges=(3, 1), points_per_edge=kmax + 1)
     with pytest.raises(ValueError, match="2.."):
