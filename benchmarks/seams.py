@@ -232,7 +232,8 @@ def markdown(result):
         "# Constrained edges: deviation from their similarities",
         "",
         f"{result['n']} random fold-free configurations (seed {result['seed']}), distortion on a "
-        f"{result['grid']}² grid over src; K ratio: per configuration, to the old default's (the paper's construction).",
+        f"{result['grid']}² grid over src; K ratio: per configuration, to the old default's "
+        "(the paper's construction).",
         "",
         "| variant | centers | dev median | dev p90 | dev max | > 1e-3 | jump max | corner err "
         "| K max | K ratio median | p90 | max | > 1.01 | fold-overs | fit ms | ns/pt fwd | ns/pt inv |",

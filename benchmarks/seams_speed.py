@@ -48,8 +48,8 @@ def backend_speed(repeats=3, n_points=1 << 16, size=256):
         }
         out[backend] = {}
         for case, run in cases.items():
-            old = _best(lambda: run(maps["old"]), repeats)
-            new = _best(lambda: run(maps["new"]), repeats)
+            old = _best(lambda run=run: run(maps["old"]), repeats)
+            new = _best(lambda run=run: run(maps["new"]), repeats)
             out[backend][case] = dict(old_ms=1e3 * old, new_ms=1e3 * new, ratio=new / old)
     return out
 

@@ -19,8 +19,8 @@ from numpy.typing import ArrayLike
 
 from ._errors import ArgumentError, InverseNotConvergedError
 from ._linear import RLinear
-from ._transform import Transform, unsolved_are_nan
 from ._tps_pairing import paired_fields
+from ._transform import Transform, unsolved_are_nan
 from .block import CORE_TPS, CORE_TPS_INVERSE, CORE_TPS_PAIRS, CORE_TPS_PAIRS_INVERSE, MAX_CENTERS, LinearPart, Stage
 
 #: Points evaluated per chunk (bounds the (chunk, centers) work arrays,
@@ -228,7 +228,7 @@ class ThinPlateSpline(Transform):
         out.partner = self.partner
         return out
 
-    def block_terms(self, inverse=False):
+    def block_terms(self, inverse: bool = False) -> tuple[int, dict]:
         """The core number and Stage fields of the spline's terms: paired
         (``CORE_TPS_PAIRS``) where :attr:`partner` is set and the pairs fit
         the block, else plain (``CORE_TPS``); the Newton inverse's cores

@@ -5,12 +5,12 @@ copies a small δ apart (fpiwarp/block/tps_pairs.py)."""
 
 import dataclasses
 
+import kernel_cases
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import kernel_cases
 from fpiwarp import ConstrainedFPI
 from fpiwarp import block as B
 from fpiwarp._tps_pairing import paired_fields

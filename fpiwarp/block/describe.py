@@ -81,7 +81,9 @@ def _stage_kind(block, k):
             f"{iters} Newton steps (at most {MAX_CENTERS} centers and {MAX_REGIONS} regions)"
         )
     if core in PAIRED_CORES and n_centers % 2:
-        raise ValueError(f"stage {k} of the parameter block has the paired core {core} and an odd {n_centers} center rows")
+        raise ValueError(
+            f"stage {k} of the parameter block has the paired core {core} and an odd {n_centers} center rows"
+        )
     return StageKind(core, n_centers, n_regions, iters)
 
 

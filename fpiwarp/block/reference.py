@@ -8,7 +8,6 @@ against the maps' own formulas.
 import numpy as np
 
 from .describe import describe, stage_rows
-from .tps_pairs import tps_pairs_core
 from .layout import (
     CORE_AFFINE,
     CORE_TPS,
@@ -26,6 +25,7 @@ from .layout import (
     ROW_REGIONS,
     ROW_SCALE,
 )
+from .tps_pairs import tps_pairs_core
 
 
 def complex_at(row, i):
