@@ -7,9 +7,9 @@ side by side in one run (so ratios are meaningful on a noisy machine):
   available backend, beside cv2.perspectiveTransform and scikit-image's
   ProjectiveTransform and ThinPlateSplineTransform on the same points.
   Ratios are against cv2.perspectiveTransform.
-- ``map_points constrained``: a ConstrainedFPI (a 40-center thin-plate
-  spline between two Möbius maps) per backend, beside scikit-image's TPS
-  through the same 40 constraint points (ratio baseline).
+- ``map_points constrained``: a ConstrainedFPI (the defaults: a 64-center
+  thin-plate spline between two Möbius maps) per backend, beside
+  scikit-image's TPS through the same 64 constraint points (ratio baseline).
 - ``warp_image``: an FPI warp (bilinear, constant border) of a uint8 RGB
   and a float32 RGB image, per available backend, beside cv2.remap with
   the FPI's maps precomputed outside the clock (the ratio baseline: the
@@ -453,9 +453,9 @@ def markdown(results, settings, machine_md):
             "",
             "## map_points, constrained FPI (TPS core)",
             "",
-            "A `ConstrainedFPI` (edges 0 and 2, 10 points per edge: a 40-center thin-plate spline between",
-            f"two Möbius maps) on the backends; ratios to `{TPS_BASELINE}`, a",
-            "plain TPS through the same 40 constraint points (a different map, the same kernel work).",
+            "A `ConstrainedFPI` (edges 0 and 2, the defaults: 16 points per edge, a 64-center thin-plate",
+            f"spline packed as 32 pairs, between two Möbius maps) on the backends; ratios to `{TPS_BASELINE}`,",
+            "scikit-image's TPS through the same 64 constraint points (a different map, about the same work).",
             "",
             table(results, "map_points constrained", "float64"),
         ]
