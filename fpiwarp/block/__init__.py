@@ -13,7 +13,8 @@ level. One module per job:
 * :mod:`~fpiwarp.block.describe`: :func:`describe`, the kind of map a
   block holds, which every backend and the renderer choose programs by;
 * :mod:`~fpiwarp.block.reference`: :func:`evaluate`, the numpy reference
-  every kernel mirrors;
+  every kernel mirrors (its paired TPS terms in
+  :mod:`~fpiwarp.block.tps_pairs`);
 * :mod:`~fpiwarp.block.codegen`: the contract's numbers for OpenCL, GLSL
   and Warp.
 """
