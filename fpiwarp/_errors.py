@@ -26,6 +26,7 @@ __all__ = [
     "BackendUnavailableError",
     "ConstraintError",
     "DegenerateQuadError",
+    "DeviceMismatchError",
     "FoldOverError",
     "FpiwarpError",
     "IllConditionedPairError",
@@ -52,6 +53,13 @@ class ArgumentError(FpiwarpError, ValueError):
 class ArgumentTypeError(FpiwarpError, TypeError):
     """An argument of a type fpiwarp does not take (a list for an image, a
     float for an order, a string for a map, ...)."""
+
+
+class DeviceMismatchError(ArgumentError):
+    """An array and a backend (or two arrays) that cannot meet without a
+    host copy: a CUDA tensor for a CPU-only backend, a pyopencl array of
+    another context, a texture for another backend; the message says
+    which backend to use or where to copy the data."""
 
 
 class SizeLimitError(ArgumentError):

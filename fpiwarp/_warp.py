@@ -11,11 +11,17 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ._transform import Transform
+from .arrays import array_info, dispatch
 from .backends import backend_capabilities, get_backend
 from .validation import check_map_size, check_point_count, check_points, check_transform, check_warp_arguments
 
 
-def map_points(transform: Transform, points: ArrayLike, backend: str = "numpy") -> np.ndarray:
+def _on_host(array) -> bool:
+    """Whether ``array`` takes the numpy path (numpy arrays, lists, ...)."""
+    return isinstance(array, np.ndarray) or array_info(array).kind == "host"
+
+
+def map_points(transform: Transform, points: ArrayLike, backend: str | None = None, *, out: object = None) -> object:
     """Map points through ``transform`` on a backend, one point per vertex.
 
     The same as ``transform(points)``, computed by the chosen backend: the
@@ -29,13 +35,21 @@ def map_points(transform: Transform, points: ArrayLike, backend: str = "numpy") 
     points : array_like, shape (..., 2)
         ``(x, y)`` points; in image coordinates x = column, y = row, pixel
         centers at integers. Any leading shape; converted to float64.
+        Device arrays (see :mod:`fpiwarp.arrays`) are mapped where they
+        are: float64 Warp/DLPack/CUDA arrays on "warp", pyopencl arrays of
+        the device's point dtype on "opencl".
     backend : str, optional
-        A name from :func:`fpiwarp.backend_status`; default ``"numpy"``.
+        A name from :func:`fpiwarp.backend_status`; default None: from
+        where the points live ("numpy" for numpy arrays and lists).
+    out : array, optional
+        An array of the result's shape, dtype and kind to write into
+        (returned); it must not share memory with ``points``.
 
     Returns
     -------
     ndarray, float64, shape (..., 2)
         The mapped points. Points sent to the pole come out non-finite.
+        For device points, an array of their library on their device.
 
     Raises
     ------
@@ -60,6 +74,9 @@ def map_points(transform: Transform, points: ArrayLike, backend: str = "numpy") 
     [[3.0, 2.0], [6.0, 4.0]]
     """
     check_transform(transform)
+    if out is not None or not _on_host(points):
+        return dispatch.map_points(transform, points, backend, out, map_points)
+    backend = "numpy" if backend is None else backend
     pts = check_points(points)
     caps = backend_capabilities(backend)
     check_point_count(pts, caps, backend)
@@ -75,10 +92,12 @@ def warp_image(
     order: int = 1,
     mode: str = "constant",
     cval: float | Sequence[float] = 0,
-    backend: str = "numpy",
+    backend: str | None = None,
     backend_options: Mapping[str, object] | None = None,
     antialias: bool = False,
-) -> np.ndarray:
+    out: object = None,
+    channels: str = "last",
+) -> object:
     """Warp ``image`` by ``transform``, which maps source to output coordinates.
 
     Each output pixel samples the source at ``transform.inverse`` of its
@@ -89,7 +108,10 @@ def warp_image(
     Parameters
     ----------
     image : ndarray, uint8, uint16 or float32, shape (H, W) or (H, W, C)
-        The source, with C from 1 to 4 channels.
+        The source, with C from 1 to 4 channels. Or an array on a device,
+        warped there without a host copy (:mod:`fpiwarp.arrays`): a Warp,
+        DLPack (PyTorch, CuPy, JAX) or CUDA array, a
+        ``pyopencl.array.Array`` or a ``moderngl.Texture``.
     transform : Transform
         An fpiwarp map (FPI, Mobius, RLinear, Compound, ...) from source to
         output coordinates.
@@ -110,7 +132,11 @@ def warp_image(
         finite; clamped to the range of uint8/uint16 images, within ±1e38
         for float32 images.
     backend : str, optional
-        A name from :func:`fpiwarp.backend_status`; default ``"numpy"``.
+        A name from :func:`fpiwarp.backend_status`; default None: from
+        where the image lives, "numpy" for numpy arrays, "opencl" for
+        pyopencl arrays, "gl" for textures, "warp" for Warp, DLPack and
+        CUDA arrays (:class:`~fpiwarp.DeviceMismatchError` where the named
+        backend cannot read the image in place).
     backend_options : dict, optional
         Options the backend declares (see
         :func:`fpiwarp.backend_capabilities`), e.g.
@@ -123,16 +149,27 @@ def warp_image(
         (the numpy reference is fpiwarp/_antialias.py). Default False. Backends that
         antialias declare it (``capabilities.antialias``).
 
+    out : array, optional
+        An array of the result's shape, dtype, kind and device to write
+        into (returned): numpy, Warp/DLPack (not JAX), pyopencl or a
+        texture; it must not share memory with ``image``.
+    channels : {'last', 'first'}, optional
+        The layout of 3-D images and results: (H, W, C) (default) or
+        (C, H, W) as PyTorch keeps them.
+
     Returns
     -------
     ndarray
         Shape ``output_shape`` (plus the channel axis if the input has one),
-        of the input's dtype; integer outputs are rounded.
+        of the input's dtype; integer outputs are rounded. For a device
+        image, an array of its kind on its device (``out`` if given).
 
     Raises
     ------
     ArgumentError
-        A bad image, shape, order, mode, cval or option (a ValueError).
+        A bad image, shape, order, mode, cval, option, ``out`` or ``channels`` (a ValueError).
+    DeviceMismatchError
+        The image (or ``out``) lives where the backend cannot read it.
     ArgumentTypeError
         ``transform`` is not an fpiwarp map (a TypeError).
     SizeLimitError
@@ -159,6 +196,11 @@ def warp_image(
     >>> fpiwarp.warp_image(img, f, output_shape=(4, 5)).shape
     (4, 5)
     """
+    if out is not None or channels != "last" or not _on_host(image):
+        return dispatch.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
+                                   backend=backend, backend_options=backend_options, antialias=antialias, out=out,
+                                   channels=channels, host_warp=warp_image)
+    backend = "numpy" if backend is None else backend
     caps = backend_capabilities(backend)
     args = check_warp_arguments(image, transform, output_shape, order, mode, cval, caps, backend, backend_options,
                                 antialias)

@@ -545,6 +545,7 @@ uvec4 fpw_round(vec4 v, float top) {
 //                   RGB32UI texel (fpw_emit_packed, fpw_pack; see
 //                   pack_rgb.frag), rounded like FPW_OUT_INT when integer;
 //   FPW_OUT_INT:    rounded and clipped to [0, fpw_top] (integer images);
+//   FPW_OUT_ROUNDED: the same, times fpw_out_scale (uint8 into a unorm texture);
 //   otherwise:      float, times fpw_out_scale (1 for float images; e.g.
 //                   1/255 to show a uint8 image in a normalized target).
 #if defined(FPW_ACCUMULATE)
@@ -581,6 +582,11 @@ void fpw_emit_packed(vec2 xy, float dx) {
 #elif defined(FPW_OUT_INT)
 layout(location = 0) out uvec4 fpw_frag;
 void fpw_emit(vec4 v) { fpw_frag = fpw_round(v, fpw_top); }
+#elif defined(FPW_OUT_ROUNDED)
+// an integer image into a normalized target (a uint8 texture): k / 255
+// stores k exactly, so the rounding is the reference's
+layout(location = 0) out vec4 fpw_frag;
+void fpw_emit(vec4 v) { fpw_frag = vec4(fpw_round(v, fpw_top)) * fpw_out_scale; }
 #else
 layout(location = 0) out vec4 fpw_frag;
 void fpw_emit(vec4 v) { fpw_frag = v * fpw_out_scale; }

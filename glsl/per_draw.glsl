@@ -42,6 +42,8 @@
 #define FPW_OUTPUT_VALUES(X)
 #elif defined(FPW_PACK_PIXELS) || defined(FPW_OUT_INT)
 #define FPW_OUTPUT_VALUES(X) X(float, fpw_top)
+#elif defined(FPW_OUT_ROUNDED)
+#define FPW_OUTPUT_VALUES(X) X(float, fpw_top) X(float, fpw_out_scale)
 #else
 #define FPW_OUTPUT_VALUES(X) X(float, fpw_out_scale)
 #endif

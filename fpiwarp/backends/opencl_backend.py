@@ -284,12 +284,48 @@ class Backend:
             job.launch()
             return job.read()
 
-    def prepare_warp(self, image, output_shape, *, order, mode, cval, antialias=False):
+    def warp_into(self, image, transform, output_shape, out, *, order, mode, cval, antialias=False):
+        """:meth:`warp_image` on ``pyopencl.array.Array`` s of this context
+        (see :meth:`prepare_warp`), read and written in place; returns
+        ``out`` once the kernel is enqueued on :attr:`queue`."""
+        with self._lock:
+            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval, antialias=antialias,
+                                    out=out)
+            job.set_map(transform)
+            job.launch()
+        return out
+
+    def map_points_into(self, transform, points, out):
+        """:meth:`map_points` on (n, 2) ``pyopencl.array.Array`` s of
+        :attr:`point_dtype` in this context, in place; returns ``out``."""
+        n = points.shape[0]
+        if n >= 2**30:
+            raise SizeLimitError(f"at most 2**30 points per call on the opencl backend, got {n}")
+        with self._lock:
+            block, kind = self._upload_block(transform)
+            if n:
+                kern = self.kernel("map_points", kind + self._point_options + (f"-DFW_LOCAL_X={self.local_x}",))
+                kern.set_args(block, points.data, out.data, np.int32(n))
+                total = -(-n // self.local_x) * self.local_x
+                self._cl.enqueue_nd_range_kernel(self.queue, kern, (total,), (self.local_x,))
+        return out
+
+    @property
+    def point_dtype(self):
+        """The dtype the device reads points in: float64 where it has doubles."""
+        return np.dtype(np.float64 if self.has_fp64 else np.float32)
+
+    def prepare_warp(self, image, output_shape, *, order, mode, cval, antialias=False, out=None):
         """A :class:`DeviceWarp`: ``image`` uploaded and the output allocated
         on the device, ready to warp by one map after another with the
         kernel alone (what :meth:`warp_image` does once; benchmarks time
-        its steps). Arguments as :meth:`warp_image` receives them."""
-        return DeviceWarp(self, image, output_shape, order, mode, cval, antialias)
+        its steps). Arguments as :meth:`warp_image` receives them.
+
+        ``image`` may also be a ``pyopencl.array.Array`` (H, W, C),
+        C-contiguous, in this backend's context with :data:`IMAGE_SLACK`
+        bytes after it in its buffer, and ``out`` one of (rows, cols, C):
+        the kernel reads and writes them in place (:mod:`fpiwarp.arrays`)."""
+        return DeviceWarp(self, image, output_shape, order, mode, cval, antialias, out)
 
 
 class DeviceWarp:
@@ -299,14 +335,14 @@ class DeviceWarp:
     next call on the backend; use it from one thread.
     """
 
-    def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False):
+    def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False, out=None):
         be, cl = backend, backend._cl
         h, w, c = image.shape
         oh, ow = output_shape
         if max(h * w, oh * ow) * c >= 2**31:
             raise SizeLimitError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
         self.backend, self.image_shape, self.output_shape = be, (h, w, c), (oh, ow)
-        self.out = np.empty((oh, ow, c), dtype=image.dtype)
+        self.out = np.empty((oh, ow, c), dtype=image.dtype) if out is None else out
         self._cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self._sampling = sampling_options(image.dtype, c, order, mode)
         fits = [x for x in NARROW_LOCAL_X if ow <= x < be.local_x and x % be.lanes == 0]
@@ -316,10 +352,15 @@ class DeviceWarp:
         self._kernel_name = "warp_image_aa" if antialias else "warp_image"
         if antialias:
             self._sampling += ("-DFW_AA=1",)
-        self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
-        cl.enqueue_copy(be.queue, self._src, image)
+        if isinstance(image, np.ndarray):
+            self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
+            cl.enqueue_copy(be.queue, self._src, image)
+        else:  # a device array (fpiwarp.arrays): read in place
+            self._src = image.data
         self._zero_copy = be.zero_copy and self.out.nbytes >= ZERO_COPY_MIN_BYTES
-        if self._zero_copy:  # the kernel writes `out` itself
+        if out is not None:  # a device array: written in place, read() returns it
+            self._dst, self._zero_copy = out.data, None
+        elif self._zero_copy:  # the kernel writes `out` itself
             mf = cl.mem_flags
             self._dst = cl.Buffer(be.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=self.out)
         else:
@@ -348,6 +389,8 @@ class DeviceWarp:
         self.backend.queue.finish()
 
     def read(self):
-        """The output as a numpy array (waits for the kernel)."""
-        self.backend._read_back(self._dst, self.out, self._zero_copy)
+        """The output as a numpy array (waits for the kernel); a device
+        ``out`` is returned as it is, without waiting."""
+        if self._zero_copy is not None:
+            self.backend._read_back(self._dst, self.out, self._zero_copy)
         return self.out

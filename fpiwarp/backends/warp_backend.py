@@ -86,6 +86,12 @@ def _warp():
     return wp
 
 
+def warp_module():
+    """Warp, imported and initialized quietly (once); for modules that
+    hand this backend Warp arrays (:mod:`fpiwarp.arrays`)."""
+    return _warp()
+
+
 def _device_name(wp, device=None):
     """The device to use: argument, else the environment, else cuda:0 or cpu."""
     name = device or os.environ.get(DEVICE_ENV, "").strip()
@@ -256,6 +262,26 @@ class Backend:
             job.launch()
             return job.read()
 
+    def warp_into(self, image, transform, output_shape, out, *, order, mode, cval, antialias=False):
+        """:meth:`warp_image` on Warp arrays of this device: ``image``
+        (H, W, C) read and ``out`` (rows, cols, C) written in place, any
+        strides; returns ``out`` (on CUDA without waiting for the kernel)."""
+        with self._lock:
+            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval, antialias=antialias,
+                                    out=out)
+            job.set_map(transform)
+            job.launch()
+        return out
+
+    def map_points_into(self, transform, points, out):
+        """:meth:`map_points` on Warp arrays of ``vec2d`` of this device,
+        read and written in place; returns ``out``."""
+        with self._lock:
+            blk = self._upload_block(transform)
+            if points.shape[0]:
+                self._launch(self._k.map_points_kernel, points.shape[0], None, [blk, points, out])
+        return out
+
     def antialias_kernels(self):
         """The module of antialiased kernels, loaded on first use."""
         from fpiwarp.kernels import warp_antialias  # noqa: PLC0415 - compiled only when asked for
@@ -265,12 +291,16 @@ class Backend:
             self._aa_loaded = True
         return warp_antialias
 
-    def prepare_warp(self, image, output_shape, *, order, mode, cval, antialias=False):
+    def prepare_warp(self, image, output_shape, *, order, mode, cval, antialias=False, out=None):
         """A :class:`DeviceWarp`: ``image`` on the device (aliased on the
         CPU) and the output allocated, ready to warp by one map after
         another with the kernel alone (what :meth:`warp_image` does once;
-        benchmarks time its steps). Arguments as :meth:`warp_image` receives them."""
-        return DeviceWarp(self, image, output_shape, order, mode, cval, antialias)
+        benchmarks time its steps). Arguments as :meth:`warp_image` receives them.
+
+        ``image`` may also be a Warp array (H, W, C) on this backend's
+        device, any strides, and ``out`` one of (rows, cols, C) of its
+        dtype: both are used in place (:mod:`fpiwarp.arrays`)."""
+        return DeviceWarp(self, image, output_shape, order, mode, cval, antialias, out)
 
 
 class DeviceWarp:
@@ -280,17 +310,20 @@ class DeviceWarp:
     until the next call on the backend; use it from one thread.
     """
 
-    def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False):
+    def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False, out=None):
         be = self.backend = backend
         wp = be._wp
         oh, ow = self.output_shape = output_shape
         channels = image.shape[2]
-        dtype = image.dtype
+        resident = isinstance(image, wp.array)  # a Warp array on this device (fpiwarp.arrays): read in place
+        dtype = np.dtype(wp.dtype_to_numpy(image.dtype)) if resident else image.dtype
         scalar = wp.dtype_from_numpy(dtype)
         cv = np.zeros(4, dtype=np.float32)
         cv[:channels] = cval
-        self._src = be._to_device("image", image, scalar)
-        if be._on_cpu:
+        self._src = image if resident else be._to_device("image", image, scalar)
+        if out is not None:  # a Warp array of (oh, ow, channels) on this device: written in place
+            self._result, self._out = None, out
+        elif be._on_cpu:
             self._result = np.empty((oh, ow, channels), dtype=dtype)
             self._out = wp.array(self._result, dtype=scalar, device="cpu", copy=False)
         else:

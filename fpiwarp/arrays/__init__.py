@@ -1,0 +1,34 @@
+"""Arrays on devices: what fpiwarp accepts besides numpy, and where it runs them.
+
+:func:`fpiwarp.warp_image` and :func:`fpiwarp.map_points` take, besides
+numpy arrays (unchanged behaviour):
+
+* any array that speaks DLPack (``__dlpack__``/``__dlpack_device__``:
+  PyTorch, CuPy, JAX, numpy itself) or the CUDA array interface, and Warp
+  arrays: the "warp" backend reads and writes them in place on their
+  device ("cpu" or "cuda:N"); the result is an array of the input's
+  library on the same device;
+* a ``pyopencl.array.Array`` in the opencl backend's context (made with
+  :func:`opencl_queue`): the kernel runs on its buffer, the result is a
+  pyopencl array;
+* a ``moderngl.Texture`` ("f1", "u2" or "f4"): rendered into a texture of
+  the same format and context.
+
+With ``backend=None`` (the default) the backend follows the data:
+numpy for numpy arrays and lists, "opencl" for pyopencl arrays, "gl" for
+textures, "warp" for Warp, DLPack and CUDA arrays. A backend that cannot
+read the data in place (a CUDA tensor for "opencl", a texture for
+"warp") raises :class:`~fpiwarp.DeviceMismatchError`. CPU DLPack arrays
+also run on the host backends, through a numpy view.
+
+Nothing here imports torch, CuPy or JAX: arrays are recognized by their
+protocols and by the types of libraries already imported
+(:func:`array_info`).
+"""
+
+from .dispatch import CHANNELS, check_channels
+from .kinds import DEFAULT_BACKENDS, KINDS, ArrayInfo, array_info, choose_backend
+from .opencl_path import opencl_queue
+
+__all__ = ["CHANNELS", "DEFAULT_BACKENDS", "KINDS", "ArrayInfo", "array_info", "check_channels", "choose_backend",
+           "opencl_queue"]

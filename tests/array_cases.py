@@ -1,0 +1,52 @@
+"""Shared pieces of the device-array tests (tests/test_arrays*.py).
+
+FPIWARP_REQUIRE_LIBRARIES (comma-separated, CI sets "jax") turns the skip
+of a missing optional array library into a failure, as
+FPIWARP_REQUIRE_BACKENDS does for backends.
+"""
+
+import importlib
+import os
+
+import numpy as np
+import pytest
+
+import fpiwarp
+
+#: A generic FPI whose pole is far from the test images (up to 48x64).
+FPI = fpiwarp.FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [60, -2], [66, 50], [-3, 44]])
+DTYPES = (np.uint8, np.uint16, np.float32)
+
+
+def require_library(name):
+    """The imported module ``name``; skip (or fail when required) without it."""
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        required = {s.strip() for s in os.environ.get("FPIWARP_REQUIRE_LIBRARIES", "").split(",")}
+        if name in required:
+            pytest.fail(f"{name} is required by FPIWARP_REQUIRE_LIBRARIES but cannot be imported: {exc}")
+        pytest.skip(f"{name} is not installed")
+
+
+def make_image(rng, shape, dtype):
+    """Random pixels over the dtype's range (float32 in [0, 1])."""
+    dtype = np.dtype(dtype)
+    if dtype.kind == "f":
+        return rng.random(shape, dtype=np.float32)
+    return rng.integers(0, np.iinfo(dtype).max, size=shape, endpoint=True).astype(dtype)
+
+
+class FakeCudaArray:
+    """An object that says it lives on CUDA device 0 through DLPack (no data)."""
+
+    def __dlpack_device__(self):
+        return (2, 0)
+
+    def __dlpack__(self, stream=None):  # pragma: no cover - never read: refused first
+        raise AssertionError("a refused array must not be read")
+
+
+def fails(*args, **kwargs):
+    """Stands in for a host copy or readback that must not happen."""
+    raise AssertionError("a host copy was made on a device path")
