@@ -1,4 +1,4 @@
-"""Run the benchmarks: ``python3 -m benchmarks [--quick] [--out DIR] [--only speed|quality|antialias]``.
+"""Run the benchmarks: ``python3 -m benchmarks [--quick] [--out DIR] [--only speed|quality|antialias|arrays]``.
 
 Writes into DIR (default: benchmarks/results next to this file), with
 stable names so a rerun replaces the previous results:
@@ -8,7 +8,9 @@ stable names so a rerun replaces the previous results:
 - quality.md, quality.json, quality_fig8.png, quality_fig11.png: the
   §5.1 distortion table and the Fig. 8 / Fig. 11 pictures;
 - antialias.md, antialias.json, antialias_crops.png: antialiasing's PSNR
-  against a supersampled reference beside the peers, and its cost.
+  against a supersampled reference beside the peers, and its cost;
+- arrays.md, arrays.json: warp_image end to end from numpy and from
+  device-resident arrays (pyopencl, Warp, JAX, textures) vs the kernel alone.
 
 ``--quick`` is a smoke run of a few seconds (small sizes, coarse grids)
 that exercises every code path; its numbers mean little.
@@ -21,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-from . import antialias, machine, quality, speed
+from . import antialias, arrays, machine, quality, speed
 
 DEFAULT_OUT = Path(__file__).resolve().parent / "results"
 
@@ -47,7 +49,7 @@ def parse_args(argv):
     parser.add_argument(
         "--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT.name}/ beside this file)"
     )
-    parser.add_argument("--only", choices=("speed", "quality", "antialias"), help="run one part only")
+    parser.add_argument("--only", choices=("speed", "quality", "antialias", "arrays"), help="run one part only")
     parser.add_argument(
         "--backends",
         type=lambda s: [b for b in s.split(",") if b],
@@ -110,6 +112,13 @@ def main(argv=None):
         write_text(out / "antialias.md", antialias.markdown(result, machine_md))
         write_json(out / "antialias.json", {"machine": info, **antialias.to_json(result)})
         _write(out / "antialias_crops.png", lambda p: antialias.figure(result, p, dpi=50 if args.quick else 90))
+
+    if args.only in (None, "arrays"):
+        t0 = time.perf_counter()
+        rows = arrays.run(quick=args.quick, backends=args.backends, log=log)
+        info["arrays_wall_s"] = round(time.perf_counter() - t0, 1)
+        write_text(out / "arrays.md", arrays.markdown(rows, machine_md))
+        write_json(out / "arrays.json", {"machine": info, "results": rows})
 
     try:
         info["load_average_at_end"] = [round(v, 2) for v in os.getloadavg()]

@@ -98,3 +98,15 @@ def test_map_points_on_pyopencl_arrays(cla, rng):
     np.testing.assert_allclose(out.get(), FPI(pts.astype(np.float64)), rtol=1e-5, atol=1e-4)
     with pytest.raises(fpiwarp.ArgumentError, match="device points"):
         fpiwarp.map_points(FPI, cla.to_device(queue, pts.astype(np.float16)))
+
+
+def test_to_opencl_arrays_are_read_in_place(cla, rng, monkeypatch):
+    from fpiwarp.arrays import opencl_path, to_opencl
+
+    img = make_image(rng, (24, 32, 3), np.uint8)  # 3-byte pixels: read as 32-bit words
+    ref = fpiwarp.warp_image(img, FPI, backend="opencl")
+    arr = to_opencl(img)
+    monkeypatch.setattr(opencl_path, "kept", fails)  # no device copy of the source either
+    res = fpiwarp.warp_image(arr, FPI)
+    monkeypatch.undo()
+    np.testing.assert_array_equal(res.get(), ref)

@@ -15,6 +15,7 @@ HIERARCHY = [
     (fpiwarp.ArgumentError, ValueError),
     (fpiwarp.ArgumentTypeError, TypeError),
     (fpiwarp.SizeLimitError, ValueError),
+    (fpiwarp.DeviceMismatchError, fpiwarp.ArgumentError),
     (fpiwarp.DegenerateQuadError, ValueError),
     (fpiwarp.ConstraintError, ValueError),
     (fpiwarp.BackendUnavailableError, RuntimeError),

@@ -9,8 +9,8 @@ numpy arrays (unchanged behaviour):
   device ("cpu" or "cuda:N"); the result is an array of the input's
   library on the same device;
 * a ``pyopencl.array.Array`` in the opencl backend's context (made with
-  :func:`opencl_queue`): the kernel runs on its buffer, the result is a
-  pyopencl array;
+  :func:`opencl_queue`, or by :func:`to_opencl`): the kernel runs on its
+  buffer, the result is a pyopencl array;
 * a ``moderngl.Texture`` ("f1", "u2" or "f4"): rendered into a texture of
   the same format and context.
 
@@ -28,7 +28,7 @@ protocols and by the types of libraries already imported
 
 from .dispatch import CHANNELS, check_channels
 from .kinds import DEFAULT_BACKENDS, KINDS, ArrayInfo, array_info, choose_backend
-from .opencl_path import opencl_queue
+from .opencl_path import opencl_queue, to_opencl
 
 __all__ = ["CHANNELS", "DEFAULT_BACKENDS", "KINDS", "ArrayInfo", "array_info", "check_channels", "choose_backend",
-           "opencl_queue"]
+           "opencl_queue", "to_opencl"]

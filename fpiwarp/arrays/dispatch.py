@@ -106,9 +106,10 @@ def warp_image(image, transform, output_shape, *, order, mode, cval, backend, ba
 
 
 def _warp_on_cpu():
-    from .warp_path import backend_on  # noqa: PLC0415
+    """Whether the registry's warp backend runs on the CPU (numpy memory is its own)."""
+    from ..backends import get_backend  # noqa: PLC0415
 
-    return str(backend_on("cpu").device) == "cpu"
+    return get_backend("warp").device.is_cpu
 
 
 def _host(image, info, transform, output_shape, order, mode, cval, name, backend_options, antialias, out, channels,
@@ -146,10 +147,19 @@ def _warp(image, info, transform, output_shape, order, mode, cval, backend_optio
     wp = warp_path.warp_module()
     backend.warp_into(src, transform, oshape, warp_path.as_hwc(wp, target, channels), order=order, mode=mode,
                       cval=cval, **options)
+    warp_path.settle(backend, out)
     return result
 
 
 def _opencl(image, transform, output_shape, order, mode, cval, backend_options, antialias, out, channels):
+    from . import opencl_path  # noqa: PLC0415
+
+    with opencl_path.lock:  # the kept source and output arrays
+        return _opencl_locked(image, transform, output_shape, order, mode, cval, backend_options, antialias, out,
+                              channels)
+
+
+def _opencl_locked(image, transform, output_shape, order, mode, cval, backend_options, antialias, out, channels):
     from . import opencl_path  # noqa: PLC0415
 
     be, src, dtype, given = opencl_path.image_source(image, channels)
@@ -162,7 +172,7 @@ def _opencl(image, transform, output_shape, order, mode, cval, backend_options, 
         raise ArgumentError("out= shares memory with the image; warp into another array")
     c = shape[2]
     if channels == "first" and not squeeze:  # (rows, cols, C) on the device, then permuted into the result
-        written = opencl_path.with_slack(be, (*oshape, c), dtype)
+        written = opencl_path.kept(be, "written", (*oshape, c), dtype)
         be.warp_into(src, transform, oshape, written, order=order, mode=mode, cval=cval, **options)
         opencl_path.permute(be, written, "to_first", dst=target)
     else:

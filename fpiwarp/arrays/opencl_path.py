@@ -7,8 +7,10 @@ through the host: (C, H, W) arrays are permuted to (H, W, C) and back by
 a small kernel, and a uint8/uint16 source whose buffer ends less than
 :data:`~fpiwarp.backends.opencl_backend.IMAGE_SLACK` bytes after its last
 pixel (the sampler reads pixels as 32-bit words) is copied into a buffer
-with that slack.
+with that slack (:func:`to_opencl` makes arrays with it).
 """
+
+import threading
 
 import numpy as np
 
@@ -19,6 +21,9 @@ _CTYPES = {np.dtype(np.uint8): "uchar", np.dtype(np.uint16): "ushort", np.dtype(
            np.dtype(np.float64): "double"}
 #: index of the source element read for destination element i
 _permute_kernels = {}  # (context, direction, dtype) -> ElementwiseKernel
+_kept = {}  # (context, role) -> array kept across calls (see kept)
+#: held while a call uses the kept arrays
+lock = threading.Lock()
 _PERMUTE = {
     "to_last": "dst[i] = src[((i % C) * H + i / (C * W)) * W + (i / C) % W]",   # (C, H, W) -> (H, W, C)
     "to_first": "dst[i] = src[((i / W) % H * W + i % W) * C + i / (W * H)]",    # (H, W, C) -> (C, H, W)
@@ -97,6 +102,36 @@ def with_slack(be, shape, dtype):
     return cla.Array(be.queue, shape, dtype, data=buf)
 
 
+def kept(be, role, shape, dtype):
+    """An array with slack of ``role`` kept across calls while its shape and
+    dtype hold (a new OpenCL buffer costs about a millisecond on PoCL)."""
+    key = (be.context.int_ptr, role)
+    arr = _kept.get(key)
+    if arr is None or arr.shape != tuple(shape) or arr.dtype != dtype:
+        arr = _kept[key] = with_slack(be, tuple(shape), np.dtype(dtype))
+    return arr
+
+
+def to_opencl(image: np.ndarray):
+    """``image`` copied once to the opencl backend's device, in a buffer
+    with the slack its sampler needs: warping it later copies nothing.
+
+    Parameters
+    ----------
+    image : ndarray
+        Any shape and dtype.
+
+    Returns
+    -------
+    pyopencl.array.Array
+        On the queue of :func:`opencl_queue`.
+    """
+    be = backend()
+    arr = with_slack(be, image.shape, image.dtype)
+    arr.set(np.ascontiguousarray(image), queue=be.queue)
+    return arr
+
+
 def image_source(image, channels):
     """(backend, the image as an (H, W, C) array the kernel can read in place,
     its dtype, its shape as given) for a pyopencl array."""
@@ -109,11 +144,12 @@ def image_source(image, channels):
     if image.ndim not in (2, 3):
         raise ArgumentError(f"image must be 2-D or 3-D, got shape {shape}")
     if image.ndim == 3 and channels == "first":
-        return be, permute(be, image, "to_last"), image.dtype, shape
+        c, h, w = shape
+        return be, permute(be, image, "to_last", dst=kept(be, "source", (h, w, c), image.dtype)), image.dtype, shape
     src = image.reshape(*shape[:2], 1) if image.ndim == 2 else image
     pixel = src.dtype.itemsize * src.shape[2]
     if pixel < 4 and image.base_data.size < image.nbytes + IMAGE_SLACK:  # the sampler would read past the end
-        padded = with_slack(be, src.shape, src.dtype)
+        padded = kept(be, "source", src.shape, src.dtype)
         _copy_device(be, padded, src)
         src = padded
     return be, src, image.dtype, shape

@@ -113,6 +113,15 @@ def output_target(backend, src_info, dtype, shape, out):
     return out, arr
 
 
+def settle(backend, out):
+    """Wait for the kernel on CUDA when it wrote a caller's ``out`` of another
+    library: that library reads it on its own stream, which DLPack's stream
+    handshake does not order here (a new result is ordered by it when the
+    library imports it)."""
+    if out is not None and not backend.device.is_cpu and array_info(out).kind != "warp":
+        warp_module().synchronize_device(backend.device)
+
+
 def map_points(transform, points, info, out):
     """Map an (..., 2) float64 or float32 device array; returns an array of
     the caller's library (or ``out``) of the same shape and dtype. float32
@@ -134,6 +143,7 @@ def map_points(transform, points, info, out):
         flat = wp.array(ptr=arr.ptr, dtype=wp.vec2d, shape=(count,), device=arr.device)
         dst = wp.array(ptr=target.ptr, dtype=wp.vec2d, shape=(count,), device=target.device)
         backend.map_points_into(transform, flat, dst)
+        settle(backend, out)
         return result
     from . import warp_kernels  # noqa: PLC0415 - compiled on first float32 points
 
@@ -145,4 +155,5 @@ def map_points(transform, points, info, out):
     backend.map_points_into(transform, flat, flat)
     if count:
         wp.launch(warp_kernels.narrow_points, dim=count, inputs=[flat, dst2], device=arr.device)
+    settle(backend, out)
     return result
