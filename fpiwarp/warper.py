@@ -8,6 +8,8 @@ to the backend once (see :func:`fpiwarp.backends.protocol.bind`).
 import numpy as np
 
 from ._errors import ArgumentError
+from ._warp import warp_image
+from .arrays import array_info
 from .backends import backend_capabilities, get_backend
 from .backends.protocol import bind
 from .validation import (
@@ -30,6 +32,8 @@ class Warper:
     ``warp_image(image, transform, output_shape, ...)`` returns; the map is
     bound to the backend once (see :mod:`fpiwarp.batch`). Picklable (for
     Dask workers): the bound map is rebuilt where the warper is unpickled.
+    Device arrays (:mod:`fpiwarp.arrays`) of the warper's backend are
+    warped in place by :func:`fpiwarp.warp_image` (the map is not bound).
     """
 
     def __init__(self, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
@@ -61,6 +65,11 @@ class Warper:
         return self._bound
 
     def __call__(self, image):
+        if not isinstance(image, np.ndarray) and array_info(image).kind != "host":
+            # a device array (fpiwarp.arrays): warped in place on this warper's backend
+            return warp_image(image, self.transform, self.output_shape, order=self.order, mode=self.mode,
+                              cval=self.cval, backend=self.backend, backend_options=self.options,
+                              antialias=self.antialias)
         args = check_warp_arguments(image, self.transform, self.output_shape, self.order, self.mode, self.cval,
                                     self.capabilities, self.backend, self.options, self.antialias)
         out = self.bound.warp_image(args.image, args.output_shape, order=args.order, mode=args.mode, cval=args.cval,

@@ -118,3 +118,12 @@ def test_numpy_dlpack_capsules_are_viewed_in_place(wp, rng):
     assert view.ptr == img.ctypes.data  # zero copy
     res = fpiwarp.warp_image(OnlyDLPack(), FPI)
     np.testing.assert_array_equal(np.asarray(res), fpiwarp.warp_image(img, FPI, backend="warp"))
+
+
+def test_warper_takes_warp_arrays(wp, rng):
+    from fpiwarp.warper import Warper
+
+    img = make_image(rng, (16, 20, 3), np.uint8)
+    res = Warper(FPI, backend="warp", order=0)(wp.array(img, device="cpu"))
+    assert isinstance(res, wp.array)
+    np.testing.assert_array_equal(res.numpy(), fpiwarp.warp_image(img, FPI, backend="warp", order=0))
