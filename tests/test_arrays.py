@@ -3,7 +3,7 @@ data, out= and channels on the host path, mismatch errors, JAX (CPU)."""
 
 import numpy as np
 import pytest
-from array_cases import FPI, FakeCudaArray, make_image, require_library
+from array_cases import FPI, FakeCudaArray, fails, make_image, require_library
 
 import fpiwarp
 from fpiwarp.arrays import array_info
@@ -74,8 +74,16 @@ def test_cuda_arrays_do_not_meet_host_backends(backend):
 
 def test_jax_cpu_arrays(rng, warp_backend):
     jnp = require_library("jax.numpy")
+    from fpiwarp.backends import warp_backend
+
     img = make_image(rng, (24, 32, 3), np.uint8)
     arr = jnp.asarray(img)
+    wp = warp_backend.warp_module()
+    assert wp.from_dlpack(arr).ptr == arr.unsafe_buffer_pointer()  # the view the warp path reads: no copy
+    with pytest.MonkeyPatch.context() as patch:  # no upload, no readback on the device path
+        patch.setattr(warp_backend.Backend, "_to_device", fails)
+        patch.setattr(warp_backend.DeviceWarp, "read", fails)
+        fpiwarp.warp_image(arr, FPI)
     for backend in (None, "numpy"):
         res = fpiwarp.warp_image(arr, FPI, backend=backend, output_shape=(20, 40))
         assert isinstance(res, type(arr))

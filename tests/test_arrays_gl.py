@@ -86,5 +86,7 @@ def test_texture_of_another_context(ctx, rng):
         res = fpiwarp.warp_image(texture(mine, img), FPI)
         assert res.ctx is mine
         np.testing.assert_array_equal(read(res, np.uint8), ref)
+        with pytest.raises(fpiwarp.DeviceMismatchError, match="another GL context"):
+            fpiwarp.warp_image(texture(ctx, img), FPI, out=mine.texture((24, 16), 3, dtype="f1"))
     finally:
         mine.release()

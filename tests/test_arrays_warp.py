@@ -4,6 +4,8 @@ device: warped in place by the warp backend, no host copies, out=."""
 import numpy as np
 import pytest
 from array_cases import DTYPES, FPI, fails, make_image
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import fpiwarp
 from fpiwarp.backends import warp_backend as wb
@@ -127,3 +129,23 @@ def test_warper_takes_warp_arrays(wp, rng):
     res = Warper(FPI, backend="warp", order=0)(wp.array(img, device="cpu"))
     assert isinstance(res, wp.array)
     np.testing.assert_array_equal(res.numpy(), fpiwarp.warp_image(img, FPI, backend="warp", order=0))
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(h=st.integers(1, 12), w=st.integers(1, 12), c=st.integers(0, 4), dtype=st.sampled_from(DTYPES),
+       order=st.sampled_from([0, 1, 3]), mode=st.sampled_from(["constant", "edge", "reflect", "wrap"]),
+       first=st.booleans(), out_h=st.integers(1, 12), out_w=st.integers(1, 12), seed=st.integers(0, 2**16))
+def test_any_warp_array_equals_its_numpy_warp(wp, h, w, c, dtype, order, mode, first, out_h, out_w, seed):
+    """Whatever the shape, layout and sampling, the in-place device path
+    gives what the warp backend gives on the same numpy image."""
+    shape = (h, w) if c == 0 else (h, w, c)
+    img = make_image(np.random.default_rng(seed), shape, dtype)
+    kw = {"output_shape": (out_h, out_w), "order": order, "mode": mode, "cval": 0.5}
+    ref = fpiwarp.warp_image(img, FPI, backend="warp", **kw)
+    if first and c:
+        res = fpiwarp.warp_image(wp.array(np.ascontiguousarray(np.moveaxis(img, 2, 0)), device="cpu"), FPI,
+                                 channels="first", **kw).numpy()
+        res = np.moveaxis(res, 0, 2)
+    else:
+        res = fpiwarp.warp_image(wp.array(img, device="cpu"), FPI, **kw).numpy()
+    np.testing.assert_array_equal(res, ref)
