@@ -81,12 +81,22 @@ def test_texture_of_another_context(ctx, rng):
 
     img = make_image(rng, (16, 24, 3), np.uint8)
     ref = fpiwarp.warp_image(img, FPI, backend="gl")
-    mine = create_context()
+    mine = create_context()  # now current in this thread
     try:
         res = fpiwarp.warp_image(texture(mine, img), FPI)
         assert res.ctx is mine
         np.testing.assert_array_equal(read(res, np.uint8), ref)
+        alien = mine.texture((24, 16), 3, dtype="f1")
         with pytest.raises(fpiwarp.DeviceMismatchError, match="another GL context"):
-            fpiwarp.warp_image(texture(ctx, img), FPI, out=mine.texture((24, 16), 3, dtype="f1"))
+            fpiwarp.warp_image(texture(ctx, img), FPI, out=alien)
     finally:
         mine.release()
+        ctx.__enter__()  # the shared context current again (creating one made it current)
+    np.testing.assert_array_equal(fpiwarp.warp_image(img, FPI, backend="gl"), ref)
+
+
+def test_antialiased_textures(ctx, rng):
+    shrink = fpiwarp.FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [30, -2], [33, 25], [-3, 22]])
+    img = make_image(rng, (48, 64, 3), np.uint8)
+    res = fpiwarp.warp_image(texture(ctx, img), shrink, antialias=True)
+    np.testing.assert_array_equal(read(res, np.uint8), fpiwarp.warp_image(img, shrink, backend="gl", antialias=True))

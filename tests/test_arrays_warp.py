@@ -149,3 +149,10 @@ def test_any_warp_array_equals_its_numpy_warp(wp, h, w, c, dtype, order, mode, f
     else:
         res = fpiwarp.warp_image(wp.array(img, device="cpu"), FPI, **kw).numpy()
     np.testing.assert_array_equal(res, ref)
+
+
+def test_antialiased_warp_arrays(wp, rng):
+    shrink = fpiwarp.FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [30, -2], [33, 25], [-3, 22]])
+    img = make_image(rng, (48, 64, 3), np.float32)
+    res = fpiwarp.warp_image(wp.array(img, device="cpu"), shrink, antialias=True)
+    np.testing.assert_array_equal(res.numpy(), fpiwarp.warp_image(img, shrink, backend="warp", antialias=True))

@@ -5,7 +5,8 @@ straight into a texture of the same format, in the same context: nothing
 is uploaded or read back. Textures of the gl backend's shared context use
 its warper; a texture of any other context (a window's, say) gets a
 :class:`~fpiwarp.backends.gl.GLWarper` of its own in that context, made
-once (call from the thread where that context is current).
+once (call from the thread where that context is current: a GL call
+never switches contexts).
 
 Formats, as :func:`fpiwarp.warp_image` takes them: ``"f1"`` (normalized
 uint8, the gl backend's own source format), ``"u2"`` (uint16 integer) and
@@ -77,7 +78,8 @@ def output_texture(src, out, output_shape):
 
 def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antialias=False):
     """Render ``src`` warped by ``transform`` into ``out`` (or a new texture);
-    arguments as :func:`fpiwarp.warp_image` checked them. Returns the texture."""
+    arguments as :func:`fpiwarp.warp_image` checked them. Returns the texture.
+    The texture's context must be current in the calling thread."""
     from ..backends.gl import FULLSCREEN, ProgramKey, bound_framebuffer, set_uniform  # noqa: PLC0415
 
     warper = warper_for(src.ctx)
