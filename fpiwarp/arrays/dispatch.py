@@ -84,6 +84,8 @@ def warp_image(image, transform, output_shape, *, order, mode, cval, backend, ba
     check_channels(channels)
     info = array_info(image)
     name = check_backend_name(choose_backend(info, backend))
+    if out is not None and array_info(out).library in ("jax", "jaxlib"):
+        raise ArgumentError("out= cannot be a JAX array (JAX arrays are immutable); leave out=None")
     if info.kind in ("numpy", "host") and not (name == "warp" and out is not None and _warp_on_cpu()):
         return _host(image, info, transform, output_shape, order, mode, cval, name, backend_options, antialias,
                      out, channels, host_warp)

@@ -38,7 +38,7 @@ class ArrayInfo:
     Attributes
     ----------
     kind : str
-        A key of :data:`KINDS`.
+        A key of ``fpiwarp.arrays.KINDS``.
     device : str
         ``"cpu"``, ``"cuda:N"``, ``"opencl"`` (its context is the array's),
         ``"gl"`` (its context is the texture's), or another DLPack device name.
