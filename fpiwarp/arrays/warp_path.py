@@ -19,13 +19,17 @@ from .kinds import array_info
 
 _lock = threading.Lock()
 _backends = {}  # Warp device name -> Backend for devices other than the default one
+_module = []  # warp, once initialized
 
 
 def warp_module():
-    """Warp, imported and initialized quietly by the warp backend."""
-    from ..backends import warp_backend  # noqa: PLC0415 - optional dependency
+    """Warp, imported and initialized quietly by the warp backend (once:
+    initializing probes the CUDA driver, ~0.1 ms a call)."""
+    if not _module:
+        from ..backends import warp_backend  # noqa: PLC0415 - optional dependency
 
-    return warp_backend.warp_module()
+        _module.append(warp_backend.warp_module())
+    return _module[0]
 
 
 def backend_on(device: str):
