@@ -156,3 +156,16 @@ def test_antialiased_warp_arrays(wp, rng):
     img = make_image(rng, (48, 64, 3), np.float32)
     res = fpiwarp.warp_image(wp.array(img, device="cpu"), shrink, antialias=True)
     np.testing.assert_array_equal(res.numpy(), fpiwarp.warp_image(img, shrink, backend="warp", antialias=True))
+
+
+@pytest.mark.parametrize("name", ["mobius", "compound", "tps", "tps_pairs", "compound_of_stages"])
+def test_every_kind_of_map_on_warp_arrays(wp, rng, name):
+    """The device path hands the kernels the same block as the numpy path
+    (its inverse computed once per call) for every kind of map."""
+    from kernel_cases import MAPS
+
+    transform = MAPS[name]()
+    img = make_image(rng, (48, 64, 3), np.uint8)
+    ref = fpiwarp.warp_image(img, transform, backend="warp")
+    res = fpiwarp.warp_image(wp.array(img, device="cpu"), transform)
+    np.testing.assert_array_equal(res.numpy(), ref)
