@@ -498,10 +498,11 @@ vec2 fpw_stage_wirtinger(vec2 z, int base, inout vec2 dz, inout vec2 dzb) {
     return post.zw + fpw_cdiv(fpw_cmul(scale.zw, p), den2);
 }
 
-// _antialias.tap_counts: ceil(len - FPW_AA_SLACK) in 1..FPW_AA_MAX_TAPS; NaN gives 1
+// _antialias.tap_counts: 1 for len <= 1 + FPW_AA_SLACK or NaN, else
+// ceil(len / FPW_AA_SPACING - FPW_AA_SLACK) in 2..FPW_AA_MAX_TAPS
 float fpw_aa_count(float len) {
-    if (isnan(len)) return 1.0;
-    return clamp(ceil(len - FPW_AA_SLACK), 1.0, float(FPW_AA_MAX_TAPS));
+    if (isnan(len) || len <= 1.0 + FPW_AA_SLACK) return 1.0;
+    return clamp(ceil(len / FPW_AA_SPACING - FPW_AA_SLACK), 2.0, float(FPW_AA_MAX_TAPS));
 }
 
 // _antialias.sample_antialiased at output position xy

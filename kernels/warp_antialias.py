@@ -52,6 +52,7 @@ wp.set_module_options({"enable_backward": False})
 
 AA_MAX_TAPS = wp.constant(CONTRACT["AA_MAX_TAPS"])
 AA_SLACK = wp.constant(CONTRACT["AA_SLACK"])
+AA_SPACING = wp.constant(CONTRACT["AA_SPACING"])
 
 
 @wp.func
@@ -146,10 +147,11 @@ def block_wirtinger(blk: wp.array(dtype=wp.vec4), z: wp.vec2):
 
 @wp.func
 def tap_count(length: float):
-    """_antialias.tap_counts: ceil(length - AA_SLACK) in 1..AA_MAX_TAPS; NaN gives 1."""
-    if length != length:
+    """_antialias.tap_counts: 1 for length <= 1 + AA_SLACK or NaN, else
+    ceil(length / AA_SPACING - AA_SLACK) in 2..AA_MAX_TAPS."""
+    if length != length or length <= 1.0 + AA_SLACK:
         return 1
-    return int(wp.clamp(wp.ceil(length - AA_SLACK), 1.0, float(AA_MAX_TAPS)))
+    return int(wp.clamp(wp.ceil(length / AA_SPACING - AA_SLACK), 2.0, float(AA_MAX_TAPS)))
 
 
 @wp.func
