@@ -499,10 +499,12 @@ vec2 fpw_stage_wirtinger(vec2 z, int base, inout vec2 dz, inout vec2 dzb) {
 }
 
 // _antialias.tap_counts: 1 for len <= 1 + FPW_AA_SLACK or NaN, else
-// ceil(len / FPW_AA_SPACING - FPW_AA_SLACK) in 2..FPW_AA_MAX_TAPS
+// ceil(min(len / SPACING, max(KNEE_TAPS, len / FAR_SPACING)) - SLACK) in
+// 2..FPW_AA_MAX_TAPS
 float fpw_aa_count(float len) {
     if (isnan(len) || len <= 1.0 + FPW_AA_SLACK) return 1.0;
-    return clamp(ceil(len / FPW_AA_SPACING - FPW_AA_SLACK), 2.0, float(FPW_AA_MAX_TAPS));
+    float n = min(len / FPW_AA_SPACING, max(float(FPW_AA_KNEE_TAPS), len / FPW_AA_FAR_SPACING));
+    return clamp(ceil(n - FPW_AA_SLACK), 2.0, float(FPW_AA_MAX_TAPS));
 }
 
 // jacobian.wirtinger: the block map's derivatives f_z, f_zbar at xy

@@ -104,10 +104,12 @@ void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int 
 #if defined(FW_T) && defined(FW_AA)
 /* _antialias.tap_counts: sub-samples along a footprint edge of length
  * len (source pixels), as a float: 1 for len <= 1 + FW_AA_SLACK or NaN,
- * else ceil(len / FW_AA_SPACING - FW_AA_SLACK) in 2..FW_AA_MAX_TAPS */
+ * else ceil(min(len / SPACING, max(KNEE_TAPS, len / FAR_SPACING)) - SLACK)
+ * in 2..FW_AA_MAX_TAPS */
 FW_FN fw_fv fw_aa_count(fw_fv len)
 {
-    fw_fv n = clamp(ceil(len / FW_AA_SPACING - FW_AA_SLACK), 2.0f, (float)FW_AA_MAX_TAPS);
+    fw_fv n = fmin(len / FW_AA_SPACING, fmax((fw_fv)(float)FW_AA_KNEE_TAPS, len / FW_AA_FAR_SPACING));
+    n = clamp(ceil(n - FW_AA_SLACK), 2.0f, (float)FW_AA_MAX_TAPS);
     return select(n, (fw_fv)1.0f, isnan(len) | (len <= 1.0f + FW_AA_SLACK));
 }
 

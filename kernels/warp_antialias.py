@@ -53,6 +53,8 @@ wp.set_module_options({"enable_backward": False})
 AA_MAX_TAPS = wp.constant(CONTRACT["AA_MAX_TAPS"])
 AA_SLACK = wp.constant(CONTRACT["AA_SLACK"])
 AA_SPACING = wp.constant(CONTRACT["AA_SPACING"])
+AA_KNEE_TAPS = wp.constant(float(CONTRACT["AA_KNEE_TAPS"]))
+AA_FAR_SPACING = wp.constant(CONTRACT["AA_FAR_SPACING"])
 
 
 @wp.func
@@ -148,10 +150,12 @@ def block_wirtinger(blk: wp.array(dtype=wp.vec4), z: wp.vec2):
 @wp.func
 def tap_count(length: float):
     """_antialias.tap_counts: 1 for length <= 1 + AA_SLACK or NaN, else
-    ceil(length / AA_SPACING - AA_SLACK) in 2..AA_MAX_TAPS."""
+    ceil(min(length / AA_SPACING, max(AA_KNEE_TAPS, length / AA_FAR_SPACING))
+    - AA_SLACK) in 2..AA_MAX_TAPS."""
     if length != length or length <= 1.0 + AA_SLACK:
         return 1
-    return int(wp.clamp(wp.ceil(length / AA_SPACING - AA_SLACK), 2.0, float(AA_MAX_TAPS)))
+    n = wp.min(length / AA_SPACING, wp.max(AA_KNEE_TAPS, length / AA_FAR_SPACING))
+    return int(wp.clamp(wp.ceil(n - AA_SLACK), 2.0, float(AA_MAX_TAPS)))
 
 
 @wp.func
