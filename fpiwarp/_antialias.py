@@ -9,16 +9,17 @@ displacement of one output step in x, of length ``Lx``, and J·(0, 1), of
 length ``Ly``.
 
 The footprint is supersampled on a grid aligned with those edge vectors,
-``nx = ceil(Lx - AA_SLACK)`` by ``ny = ceil(Ly - AA_SLACK)`` sub-samples
-(each clipped to 1..AA_MAX_TAPS), at s = (2i + 1 - nx) / (2 nx) and
+``nx`` by ``ny`` sub-samples (:func:`tap_counts` of Lx and Ly: 1 where
+the edge does not shrink, else about L / AA_SPACING but at least 2, at most
+AA_MAX_TAPS), at s = (2i + 1 - nx) / (2 nx) and
 t = (2j + 1 - ny) / (2 ny), each interpolated with the chosen order and
 border mode and averaged with equal weights (a box filter over the
 footprint). So:
 
-* sub-samples lie at most about one source pixel apart along each edge,
-  which together with the interpolation's own low-pass keeps the average
-  close to the exact box integral (see the benchmark's antialiasing
-  section);
+* sub-samples lie at most AA_SPACING (1.25) source pixels apart along each
+  edge (AA_FAR_SPACING, 1.75, beyond AA_KNEE_TAPS of them), which together
+  with the interpolation's own low-pass keeps the average close to the
+  exact box integral (see the benchmark's antialiasing section);
 * the two axes are counted separately: a footprint shrunk in one direction
   only is sampled densely along that direction only (anisotropic);
 * where the map magnifies or keeps the scale (Lx, Ly <= 1 + AA_SLACK),
@@ -36,18 +37,26 @@ import numpy as np
 
 from ._sampling import sample
 from ._transform import unsolved_as_nan
-from .block.sampling_rules import AA_MAX_TAPS, AA_SLACK, COORD_LIMIT
+from .block.sampling_rules import AA_FAR_SPACING, AA_KNEE_TAPS, AA_MAX_TAPS, AA_SLACK, AA_SPACING, COORD_LIMIT
 from .positions import CHUNK_PIXELS, pixel_grid
 
 
 def tap_counts(edge):
     """Sub-samples along a footprint edge of complex length vector ``edge``
-    (source pixels per output pixel): int array, 1..AA_MAX_TAPS (NaN
-    lengths give 1, infinite ones AA_MAX_TAPS)."""
+    (source pixels per output pixel): int array, 1..AA_MAX_TAPS. Lengths
+    L <= 1 + AA_SLACK (and NaN) give 1, others ceil(min(L / AA_SPACING,
+    max(AA_KNEE_TAPS, L / AA_FAR_SPACING)) - AA_SLACK) but at least 2
+    (infinite ones AA_MAX_TAPS).
+
+    >>> tap_counts(np.array([0.5, 1.0, 1.2, 2.0, 2.4, 3.0, 5.0, 8.0, 9.0, np.inf])).tolist()
+    [1, 1, 2, 2, 2, 3, 4, 5, 6, 16]
+    """
     with np.errstate(invalid="ignore", over="ignore"):
         length = np.abs(edge)
-        n = np.ceil(np.where(np.isnan(length), 0.0, length) - AA_SLACK)
-    return np.clip(n, 1, AA_MAX_TAPS).astype(np.int64)
+        length = np.where(np.isnan(length), 0.0, length)
+        n = np.minimum(length / AA_SPACING, np.maximum(AA_KNEE_TAPS, length / AA_FAR_SPACING))
+        n = np.maximum(np.ceil(n - AA_SLACK), 2.0)
+    return np.where(length <= 1.0 + AA_SLACK, 1, np.clip(n, 1, AA_MAX_TAPS)).astype(np.int64)
 
 
 def footprint_edges(fz, fzb):

@@ -498,24 +498,33 @@ vec2 fpw_stage_wirtinger(vec2 z, int base, inout vec2 dz, inout vec2 dzb) {
     return post.zw + fpw_cdiv(fpw_cmul(scale.zw, p), den2);
 }
 
-// _antialias.tap_counts: ceil(len - FPW_AA_SLACK) in 1..FPW_AA_MAX_TAPS; NaN gives 1
+// _antialias.tap_counts: 1 for len <= 1 + FPW_AA_SLACK or NaN, else
+// ceil(min(len / SPACING, max(KNEE_TAPS, len / FAR_SPACING)) - SLACK) in
+// 2..FPW_AA_MAX_TAPS
 float fpw_aa_count(float len) {
-    if (isnan(len)) return 1.0;
-    return clamp(ceil(len - FPW_AA_SLACK), 1.0, float(FPW_AA_MAX_TAPS));
+    if (isnan(len) || len <= 1.0 + FPW_AA_SLACK) return 1.0;
+    float n = min(len / FPW_AA_SPACING, max(float(FPW_AA_KNEE_TAPS), len / FPW_AA_FAR_SPACING));
+    return clamp(ceil(n - FPW_AA_SLACK), 2.0, float(FPW_AA_MAX_TAPS));
 }
 
-// _antialias.sample_antialiased at output position xy
-vec4 fpw_sample_antialiased(vec2 xy) {
-    vec2 pos = fpw_map(xy);  // exactly the plain warp's position
-    vec2 dz = vec2(1.0, 0.0);
-    vec2 dzb = vec2(0.0);
+// jacobian.wirtinger: the block map's derivatives f_z, f_zbar at xy
+void fpw_map_wirtinger(vec2 xy, out vec2 dz, out vec2 dzb) {
+    dz = vec2(1.0, 0.0);
+    dzb = vec2(0.0);
     vec2 z = xy;
     int n_stages = int(fpw_rows[0].x);
     for (int k = 0; k < n_stages; ++k) {
         z = fpw_stage_wirtinger(z, 1 + k * FPW_STAGE_ROWS, dz, dzb);
     }
-    vec2 ex = dz + dzb;
-    vec2 ey = vec2(dzb.y - dz.y, dz.x - dzb.x);
+}
+
+// the footprint's edges J (1, 0) and J (0, 1) (_antialias.footprint_edges)
+vec2 fpw_edge_x(vec2 dz, vec2 dzb) { return dz + dzb; }
+vec2 fpw_edge_y(vec2 dz, vec2 dzb) { return vec2(dzb.y - dz.y, dz.x - dzb.x); }
+
+// _antialias.sample_antialiased at source position pos with footprint
+// edges ex, ey (source pixels)
+vec4 fpw_sample_footprint(vec2 pos, vec2 ex, vec2 ey) {
     float nx = fpw_aa_count(length(ex));
     float ny = fpw_aa_count(length(ey));
     if (nx == 1.0 && ny == 1.0) return fpw_sample(pos);
@@ -529,6 +538,14 @@ vec4 fpw_sample_antialiased(vec2 xy) {
         }
     }
     return acc / (nx * ny);
+}
+
+// _antialias.sample_antialiased at output position xy
+vec4 fpw_sample_antialiased(vec2 xy) {
+    vec2 pos = fpw_map(xy);  // exactly the plain warp's position
+    vec2 dz, dzb;
+    fpw_map_wirtinger(xy, dz, dzb);
+    return fpw_sample_footprint(pos, fpw_edge_x(dz, dzb), fpw_edge_y(dz, dzb));
 }
 #endif  // FPW_ANTIALIAS
 

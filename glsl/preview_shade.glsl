@@ -7,6 +7,8 @@
 // dark blue (0, conformal) to dark red (pv_heat_max and above).
 // Include after fpiwarp_map.glsl (with FPW_WITH_SAMPLER). Call pv_shade
 // from main() unconditionally: it differentiates src between fragments.
+// pv_shade_value shades a value the caller sampled (the antialiased
+// preview: FPW_ANTIALIAS, see preview.frag).
 //
 // The source texture is normalized (uint8 / 255, uint16 / 65535) or float;
 // the host scales cval alike, and the output is written as is.
@@ -22,14 +24,13 @@ vec3 pv_jet(float t) {
     return clamp(vec3(1.5 - abs(4.0 * t - 3.0), 1.5 - abs(4.0 * t - 2.0), 1.5 - abs(4.0 * t - 1.0)), 0.0, 1.0);
 }
 
-vec4 pv_shade(vec2 src) {
+vec4 pv_shade_value(vec2 src, vec4 c) {
     // Finite differences of the source position between neighbouring
     // fragments (2x2 blocks): the Jacobian of the inverse map per output
     // pixel, whose dilation is the forward map's at src. Computed before
     // any branch (derivatives need uniform control flow).
     vec2 a = dFdx(src) / fpw_view.z;  // d src / d x_out
     vec2 b = dFdy(src) / fpw_view.w;  // d src / d y_out
-    vec4 c = fpw_sample(src);
 #ifndef PV_ALPHA
     // Without an alpha channel the texels read alpha 1 and cval is
     // (0, 0, 0, 0): c.a is the weight of the taps inside the image, and
@@ -53,4 +54,8 @@ vec4 pv_shade(vec2 src) {
         c.rgb = mix(c.rgb, pv_jet(d / pv_heat_max), pv_heat);
     }
     return c;
+}
+
+vec4 pv_shade(vec2 src) {
+    return pv_shade_value(src, fpw_sample(src));
 }

@@ -103,14 +103,17 @@ void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int 
 
 #if defined(FW_T) && defined(FW_AA)
 /* _antialias.tap_counts: sub-samples along a footprint edge of length
- * len (source pixels), as a float in 1..FW_AA_MAX_TAPS; NaN gives 1 */
+ * len (source pixels), as a float: 1 for len <= 1 + FW_AA_SLACK or NaN,
+ * else ceil(min(len / SPACING, max(KNEE_TAPS, len / FAR_SPACING)) - SLACK)
+ * in 2..FW_AA_MAX_TAPS */
 FW_FN fw_fv fw_aa_count(fw_fv len)
 {
-    fw_fv n = clamp(ceil(len - FW_AA_SLACK), 1.0f, (float)FW_AA_MAX_TAPS);
-    return select(n, (fw_fv)1.0f, isnan(len));
+    fw_fv n = fmin(len / FW_AA_SPACING, fmax((fw_fv)(float)FW_AA_KNEE_TAPS, len / FW_AA_FAR_SPACING));
+    n = clamp(ceil(n - FW_AA_SLACK), 2.0f, (float)FW_AA_MAX_TAPS);
+    return select(n, (fw_fv)1.0f, isnan(len) | (len <= 1.0f + FW_AA_SLACK));
 }
 
-/* the largest lane of v */
+/* the largest lane of v (at least 1) */
 FW_FN float fw_aa_lanes_max(fw_fv v)
 {
     float m = 1.0f;
@@ -120,13 +123,26 @@ FW_FN float fw_aa_lanes_max(fw_fv v)
     return m;
 }
 
+/* the smallest lane of v */
+FW_FN float fw_aa_lanes_min(fw_fv v)
+{
+    float m = FW_LANE(v, 0);
+#define FW_AA_MIN_LANE(k, _) m = min(m, FW_LANE(v, k));
+    FW_EACH_LANE(FW_AA_MIN_LANE, _)
+#undef FW_AA_MIN_LANE
+    return m;
+}
+
 /* warp_image with antialiasing (fpiwarp/_antialias.py): each pixel the
  * box average of nx x ny sub-samples of its footprint, the parallelogram
  * spanned by the inverse map's Jacobian columns ex, ey at the pixel; nx,
  * ny from the edges' lengths (fw_aa_count). Same work-groups and phases as
  * warp_image: the map and its derivatives per pixel into local memory,
  * then the sampling, FW_VN pixels per work-item, looping over the largest
- * counts of its lanes (lanes with fewer sub-samples skip the extra ones). */
+ * counts of its lanes (lanes with fewer sub-samples skip the extra ones).
+ * The plain sample at the pixel is taken only where some lane needs it
+ * (one sub-sample): on a PoCL CPU a sample costs about as much in the
+ * loop as outside it, so skipping it saves one of the 4 or more. */
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
 void warp_image_aa(fw_block_t block, __global const FW_T *restrict src, int w, int h,
                    __global FW_T *restrict dst, int ow, int oh, float4 cval)
@@ -157,7 +173,9 @@ void warp_image_aa(fw_block_t block, __global const FW_T *restrict src, int w, i
     fw_fv ax = FW_VLOAD(exx + at0), ay = FW_VLOAD(exy + at0);
     fw_fv bx = FW_VLOAD(eyx + at0), by = FW_VLOAD(eyy + at0);
     fw_fv nx = fw_aa_count(sqrt(ax * ax + ay * ay)), ny = fw_aa_count(sqrt(bx * bx + by * by));
-    fw_pxv v = fw_sample(src, w, h, sx, sy, cval);
+    fw_pxv v = {0.0f, 0.0f, 0.0f, 0.0f};
+    if (fw_aa_lanes_min(nx * ny) == 1.0f)
+        v = fw_sample(src, w, h, sx, sy, cval);
     float mx = fw_aa_lanes_max(nx), my = fw_aa_lanes_max(ny);
     if (mx > 1.0f || my > 1.0f) {
         fw_fv acc0 = 0.0f, acc1 = 0.0f, acc2 = 0.0f, acc3 = 0.0f;

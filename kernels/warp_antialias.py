@@ -52,6 +52,9 @@ wp.set_module_options({"enable_backward": False})
 
 AA_MAX_TAPS = wp.constant(CONTRACT["AA_MAX_TAPS"])
 AA_SLACK = wp.constant(CONTRACT["AA_SLACK"])
+AA_SPACING = wp.constant(CONTRACT["AA_SPACING"])
+AA_KNEE_TAPS = wp.constant(float(CONTRACT["AA_KNEE_TAPS"]))
+AA_FAR_SPACING = wp.constant(CONTRACT["AA_FAR_SPACING"])
 
 
 @wp.func
@@ -146,10 +149,13 @@ def block_wirtinger(blk: wp.array(dtype=wp.vec4), z: wp.vec2):
 
 @wp.func
 def tap_count(length: float):
-    """_antialias.tap_counts: ceil(length - AA_SLACK) in 1..AA_MAX_TAPS; NaN gives 1."""
-    if length != length:
+    """_antialias.tap_counts: 1 for length <= 1 + AA_SLACK or NaN, else
+    ceil(min(length / AA_SPACING, max(AA_KNEE_TAPS, length / AA_FAR_SPACING))
+    - AA_SLACK) in 2..AA_MAX_TAPS."""
+    if length != length or length <= 1.0 + AA_SLACK:
         return 1
-    return int(wp.clamp(wp.ceil(length - AA_SLACK), 1.0, float(AA_MAX_TAPS)))
+    n = wp.min(length / AA_SPACING, wp.max(AA_KNEE_TAPS, length / AA_FAR_SPACING))
+    return int(wp.clamp(wp.ceil(n - AA_SLACK), 2.0, float(AA_MAX_TAPS)))
 
 
 @wp.func
@@ -197,6 +203,64 @@ def sample_channel(img: wp.array3d(dtype=Any), s: wp.vec2, c: int, order: int, m
     return v
 
 
+@wp.func
+def sample_pixel(img: wp.array3d(dtype=Any), s: wp.vec2, order: int, mode: int, cval: wp.vec4):
+    """_sampling.sample of every channel at s (in range), as sample_channel
+    per channel but with the taps' indices and weights computed once: the
+    sub-samples' sampler."""
+    h = img.shape[0]
+    w = img.shape[1]
+    sx = clip_coord(s[0])
+    sy = clip_coord(s[1])
+    v = wp.vec4(0.0)
+    if order == 0:
+        ix = int(wp.floor(sx + 0.5))
+        iy = int(wp.floor(sy + 0.5))
+        ok = inside(ix, w, mode) and inside(iy, h, mode)
+        r = border_index(iy, h, mode)
+        q = border_index(ix, w, mode)
+        for c in range(img.shape[2]):
+            v[c] = tap(float(img[r, q, c]), cval[c], ok)
+        return v
+    fx = wp.floor(sx)
+    fy = wp.floor(sy)
+    tx = sx - fx
+    ty = sy - fy
+    if order == 1:
+        x0 = int(fx)
+        y0 = int(fy)
+        c0 = border_index(x0, w, mode)
+        c1 = border_index(x0 + 1, w, mode)
+        r0 = border_index(y0, h, mode)
+        r1 = border_index(y0 + 1, h, mode)
+        ok00 = inside(y0, h, mode) and inside(x0, w, mode)
+        ok01 = inside(y0, h, mode) and inside(x0 + 1, w, mode)
+        ok10 = inside(y0 + 1, h, mode) and inside(x0, w, mode)
+        ok11 = inside(y0 + 1, h, mode) and inside(x0 + 1, w, mode)
+        for c in range(img.shape[2]):
+            v00 = tap(float(img[r0, c0, c]), cval[c], ok00)
+            v01 = tap(float(img[r0, c1, c]), cval[c], ok01)
+            v10 = tap(float(img[r1, c0, c]), cval[c], ok10)
+            v11 = tap(float(img[r1, c1, c]), cval[c], ok11)
+            v[c] = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
+        return v
+    wx = cubic_weights(tx)
+    wy = cubic_weights(ty)
+    x0 = int(fx) - 1
+    y0 = int(fy) - 1
+    for j in range(4):
+        row = border_index(y0 + j, h, mode)
+        row_in = inside(y0 + j, h, mode)
+        acc = wp.vec4(0.0)
+        for i in range(4):
+            col = border_index(x0 + i, w, mode)
+            ok = row_in and inside(x0 + i, w, mode)
+            for c in range(img.shape[2]):
+                acc[c] = acc[c] + wx[i] * tap(float(img[row, col, c]), cval[c], ok)
+        v = v + wy[j] * acc
+    return v
+
+
 @wp.kernel
 def warp_antialias(
     blk: wp.array(dtype=wp.vec4),
@@ -227,14 +291,18 @@ def warp_antialias(
     fnx = float(nx)
     fny = float(ny)
     inv = 1.0 / (fnx * fny)
+    acc = wp.vec4(0.0)
+    for j in range(ny):
+        t = (2.0 * float(j) + 1.0 - fny) / (2.0 * fny)
+        for i in range(nx):
+            sub = (2.0 * float(i) + 1.0 - fnx) / (2.0 * fnx)
+            p = s + (ex * sub + ey * t)
+            if in_range(p):
+                acc = acc + sample_pixel(img, p, order, mode, cval)
+            else:
+                acc = acc + cval
     for c in range(img.shape[2]):
-        acc = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
-        for j in range(ny):
-            t = (2.0 * float(j) + 1.0 - fny) / (2.0 * fny)
-            for i in range(nx):
-                sub = (2.0 * float(i) + 1.0 - fnx) / (2.0 * fnx)
-                acc = acc + sample_channel(img, s + (ex * sub + ey * t), c, order, mode, cval[c])
-        store(out, y, x, c, acc * inv, top)
+        store(out, y, x, c, acc[c] * inv, top)
 
 
 for _dtype in (wp.uint8, wp.uint16, wp.float32):

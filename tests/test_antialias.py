@@ -54,8 +54,8 @@ def test_block_jacobian_matches_the_maps_own(name):
 
 
 def test_tap_counts_are_capped_and_nan_safe():
-    edges = np.array([0.3, 1.0, 1.005, 2.0, 2.5, 1e9, np.inf, np.nan]) + 0j
-    assert tap_counts(edges).tolist() == [1, 1, 1, 2, 3, AA_MAX_TAPS, AA_MAX_TAPS, 1]
+    edges = np.array([0.3, 1.0, 1.005, 1.02, 2.0, 2.5, 2.6, 5.0, 8.75, 9.0, 1e9, np.inf, np.nan]) + 0j
+    assert tap_counts(edges).tolist() == [1, 1, 1, 2, 2, 2, 3, 4, 5, 6, AA_MAX_TAPS, AA_MAX_TAPS, 1]
 
 
 @pytest.mark.parametrize("mode", ["constant", "edge", "reflect", "wrap"])

@@ -11,7 +11,18 @@ source writes one of these numbers itself (a test checks it).
 """
 
 from . import layout as L
-from .sampling_rules import AA_MAX_TAPS, AA_SLACK, COORD_LIMIT, MODE_CONSTANT, MODE_EDGE, MODE_REFLECT, MODE_WRAP
+from .sampling_rules import (
+    AA_FAR_SPACING,
+    AA_KNEE_TAPS,
+    AA_MAX_TAPS,
+    AA_SLACK,
+    AA_SPACING,
+    COORD_LIMIT,
+    MODE_CONSTANT,
+    MODE_EDGE,
+    MODE_REFLECT,
+    MODE_WRAP,
+)
 
 #: Every number of the contract a kernel uses, by name (without prefix).
 KERNEL_CONSTANTS = {
@@ -41,6 +52,9 @@ KERNEL_CONSTANTS = {
     "COORD_LIMIT": COORD_LIMIT,
     "AA_MAX_TAPS": AA_MAX_TAPS,
     "AA_SLACK": AA_SLACK,
+    "AA_SPACING": AA_SPACING,
+    "AA_KNEE_TAPS": AA_KNEE_TAPS,
+    "AA_FAR_SPACING": AA_FAR_SPACING,
 }
 
 #: The prefix of the contract's names in each C-like language.

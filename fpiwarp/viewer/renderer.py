@@ -117,9 +117,16 @@ class Renderer:
         piecewise linear between grid points); "auto": "pixel" for maps of
         constant dilation (an FPI), "mesh" for the others.
     antialias : bool
-        Whether ``warp_full`` (the full-resolution export) antialiases,
-        as :func:`fpiwarp.warp_image` does with ``antialias=True``. The
-        on-screen preview (:meth:`draw`) is not antialiased.
+        Whether the picture is antialiased (see :func:`fpiwarp.warp_image`):
+        ``warp_full`` (the full-resolution export) as ``warp_image`` with
+        ``antialias=True``, and :meth:`draw` per screen pixel, over the
+        pixel's footprint in the source: the inverse map's Jacobian times
+        the view's scale ("pixel" method; "mesh": the mesh's own
+        derivatives per screen pixel). A zoomed-out view, or a map that
+        shrinks, is filtered instead of aliasing; where a screen pixel
+        covers at most a source pixel (zoomed in, no shrinking) the draw
+        is the plain one, bit for bit. Costs up to AA_MAX_TAPS² samples
+        per screen pixel where it shrinks.
 
     Notes
     -----
@@ -330,8 +337,9 @@ class Renderer:
         ctx.viewport = viewport
         method = self._method()
         kind = self._upload(method)  # the block again: the buffer may have served another map
+        flags = ("PV_ALPHA",) if self.image.shape[2] in (2, 4) else ()
         shading = dict(stages=kind, order=self.order, mode=self.mode,
-                       flags=("PV_ALPHA",) if self.image.shape[2] in (2, 4) else ())
+                       flags=flags + (("FPW_ANTIALIAS",) if self.antialias else ()))
         h, w, c = self.image.shape
         cval4 = display_rgba(np.broadcast_to(np.asarray(self._cval, np.float64), (c,)) / self._scale)
         bg = cval4 if self.background is None else np.resize(np.asarray(self.background, np.float64), 4)
