@@ -160,7 +160,7 @@ def test_batch_entry_points_pass_antialias():
 # --- every backend -------------------------------------------------------------
 
 
-PARITY_MAPS = ["fpi", "mobius", "compound", "tps", "tps_inverse"]
+PARITY_MAPS = ["fpi", "mobius", "compound", "tps", "tps_inverse", "tps_pairs", "tps_pairs_inverse"]
 
 
 def test_every_backend_antialiases_and_one_without_would_refuse_in_one_line(any_backend):
