@@ -120,3 +120,20 @@ def test_warp_kind_kernels_are_made_once_per_kind(warp_backend):
     kernel = warp_kinds.image_kernel(key, 1, 3, 0, np.uint8)
     assert warp_kinds.image_kernel(key, 1, 3, 0, np.dtype(np.uint8)) is kernel
     assert warp_kinds.image_kernel(key, 1, 3, 1, np.uint8) is not kernel
+
+
+@pytest.mark.parametrize("width", [257, 1000, 1025, 1920])
+def test_opencl_group_widths_cover_every_pixel_of_wide_rows(opencl_backend, width):
+    """Rows wider than the narrow groups are cut into groups of a multiple
+    of GROUP_STEP px (launch_width): every pixel, the row's last included,
+    matches the reference."""
+    from fpiwarp.backends import get_backend
+    from fpiwarp.backends.opencl_backend import launch_width
+
+    local = launch_width(get_backend("opencl"), width)
+    assert local * -(-width // local) - width < 128  # little padding
+    image = make_image((3, width, 3), np.uint8, width)
+    shift = RLinear(1, 0, complex(-0.3, 0.4))
+    for order in (0, 1, 3):
+        got = fpiwarp.warp_image(image, shift, order=order, mode="edge", backend=opencl_backend)
+        agree(got, want(image, shift, order=order, mode="edge"))

@@ -50,6 +50,9 @@ LOCAL_X_CPU, LOCAL_X_OTHER = 1024, 128
 #: smallest of these widths that covers a row (each a build of its own), so
 #: that a 64 px row does not run 960 padding work-items.
 NARROW_LOCAL_X = (64, 256)
+#: Wider rows get groups of a multiple of this width (see :func:`launch_width`);
+#: each width is a build of its own, so widths come in steps.
+GROUP_STEP = 64
 #: On CPUs warp_image samples 8 pixels per work-item in 8-lane vector types
 #: (AVX registers): PoCL does not vectorize the sampling across work-items.
 VECTOR_LANES_CPU = 8
@@ -136,10 +139,17 @@ def kind_options(kind):
 
 def launch_width(backend, width):
     """Work-group width of warp_image for outputs ``width`` px wide: the
-    narrowest of :data:`NARROW_LOCAL_X` that covers a row, else the
-    backend's width."""
+    narrowest of :data:`NARROW_LOCAL_X` that covers a row; wider rows are
+    cut into the fewest groups of at most the backend's width, each a
+    multiple of :data:`GROUP_STEP` px, so that a row runs few padding
+    work-items (a 3840 px row in groups of 1024 ran 256 that redid its last
+    pixel; four groups of 960 run none)."""
     fits = [x for x in NARROW_LOCAL_X if width <= x < backend.local_x and x % backend.lanes == 0]
-    return fits[0] if fits else backend.local_x
+    if fits:
+        return fits[0]
+    groups = -(-width // backend.local_x)
+    step = GROUP_STEP if backend.local_x % GROUP_STEP == 0 else backend.local_x
+    return min(backend.local_x, -(-width // (groups * step)) * step)
 
 
 def sampling_options(dtype, channels, order, mode):

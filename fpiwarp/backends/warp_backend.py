@@ -41,7 +41,7 @@ DEVICE_ENV = "FPIWARP_WARP_DEVICE"
 #: Environment variable with the number of CPU threads (CPU device only).
 THREADS_ENV = "FPIWARP_WARP_THREADS"
 #: Below this many work items a CPU call is one launch on the calling thread.
-MIN_ITEMS_PER_THREAD = 1 << 16
+MIN_ITEMS_PER_THREAD = 1 << 14
 
 _TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
 _init_lock = threading.Lock()
