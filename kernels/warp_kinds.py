@@ -66,12 +66,12 @@ def _stage_func(s0, core, n_regions):
             p = M.cmul(M.lo(blk[S0 + M.ROW_L12]), p) + M.cmul(M.hi(blk[S0 + M.ROW_L12]), M.conj(p)) + M.lo(
                 blk[S0 + M.ROW_L3]
             )
-        elif wp.static(CORE == M.CORE_TPS):
+        elif wp.static(CORE == M.CORE_TPS or CORE == M.CORE_TPS_PAIRS):
             hdr = blk[S0 + M.ROW_HEADER]
-            p = M.tps_value(blk, S0, int(hdr[1]), p)
+            p = M.tps_value(blk, S0, int(hdr[1]), p, wp.static(CORE == M.CORE_TPS_PAIRS))
         else:
             hdr = blk[S0 + M.ROW_HEADER]
-            p = M.tps_newton(blk, S0, int(hdr[1]), int(hdr[3]), p)
+            p = M.tps_newton(blk, S0, int(hdr[1]), int(hdr[3]), p, wp.static(CORE == M.CORE_TPS_PAIRS_INVERSE))
         post = blk[S0 + M.ROW_POST]
         return M.hi(post) + M.cdiv(M.cmul(M.hi(blk[S0 + M.ROW_SCALE]), p), wp.vec2(1.0, 0.0) - M.cmul(M.lo(post), p))
 

@@ -12,7 +12,7 @@ import pickle
 
 import numpy as np
 import pytest
-from kernel_cases import assert_images_agree, make_image, region_map, tps_map
+from kernel_cases import assert_images_agree, make_image, region_map, tps_map, tps_pairs_map
 
 import fpiwarp
 from fpiwarp import FPI, RLinear
@@ -103,7 +103,7 @@ def test_warp_kind_kernels_match_the_reference(warp_backend, order, mode):
     dtype, on maps of every core and with regions."""
     for seed, (transform, dtype, channels) in enumerate(
         [(fpi(1.0), np.uint8, 3), (RLinear(1.1, 0.05, 3) @ fpi(1.0), np.float32, 1), (tps_map(), np.uint16, 2),
-         (region_map(), np.uint8, 4)]
+         (region_map(), np.uint8, 4), (tps_pairs_map(), np.uint8, 3), (tps_pairs_map().inverse, np.float32, 2)]
     ):
         image = make_image((40, 48, channels), dtype, seed)
         got = fpiwarp.warp_image(image, transform, order=order, mode=mode, cval=3, backend=warp_backend)
