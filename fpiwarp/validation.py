@@ -140,6 +140,11 @@ def check_cval(cval, channels, dtype=None):
     (float32 images, or no dtype) each value must lie within
     ±:data:`CVAL_LIMIT`, where float32 interpolation cannot overflow.
     """
+    if type(cval) in (int, float) and abs(cval) <= CVAL_LIMIT:  # the common case, without numpy's overhead
+        value = float(cval)
+        if dtype is not None and np.dtype(dtype).kind == "u":
+            value = min(max(value, 0.0), float(np.iinfo(dtype).max))
+        return np.full(channels, value)
     problem = f"cval must be a finite number or one per channel ({channels}), got {cval!r}"
     try:
         arr = np.asarray(cval, dtype=np.float64)
@@ -170,6 +175,11 @@ def check_points(points, name="points"):
 #: Where Linux states the memory limit of this process's control group
 #: (a container's limit, often below the machine's memory).
 CGROUP_MEMORY_MAX = "/sys/fs/cgroup/memory.max"
+
+
+#: Outputs smaller than this skip the memory check (any machine that runs
+#: fpiwarp has that much): it reads a file, a cost on every small call.
+MEMORY_CHECK_MIN_BYTES = 1 << 26
 
 
 def physical_memory():
@@ -211,7 +221,7 @@ def check_sizes(image_shape, output_shape, dtype, capabilities, backend):
                 f"{what} of {_size((rows, cols))} px is above the {backend} backend's limit of {side} px per side"
             )
     need = oh * ow * c * np.dtype(dtype).itemsize
-    memory = physical_memory()
+    memory = physical_memory() if need >= MEMORY_CHECK_MIN_BYTES else None  # no file read per small call
     if memory is not None and need > memory:
         raise SizeLimitError(
             f"output of {_size((oh, ow, c))} {np.dtype(dtype)} needs {need / 2**30:.1f} GiB, "

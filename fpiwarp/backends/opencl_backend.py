@@ -37,6 +37,7 @@ from .._errors import SizeLimitError
 from ..block import describe
 from ..block.codegen import opencl_preamble
 from ..block.sampling_rules import MODES
+from .opencl_prepared import IMAGE_SLACK, ZERO_COPY_MIN_BYTES, BoundMap, JobCache
 
 ENV_DEVICE = "FPIWARP_OPENCL_DEVICE"
 _SOURCE, _HEADER = "fpiwarp.cl", "fpiwarp_map.h"
@@ -49,18 +50,12 @@ LOCAL_X_CPU, LOCAL_X_OTHER = 1024, 128
 #: smallest of these widths that covers a row (each a build of its own), so
 #: that a 64 px row does not run 960 padding work-items.
 NARROW_LOCAL_X = (64, 256)
+#: Wider rows get groups of a multiple of this width (see :func:`launch_width`);
+#: each width is a build of its own, so widths come in steps.
+GROUP_STEP = 64
 #: On CPUs warp_image samples 8 pixels per work-item in 8-lane vector types
 #: (AVX registers): PoCL does not vectorize the sampling across work-items.
 VECTOR_LANES_CPU = 8
-#: Bytes allocated past the source image: sampling reads a pixel of up to
-#: 4 bytes as one 32-bit word, which may run past the last pixel.
-IMAGE_SLACK = 4
-#: Outputs smaller than this are written to a kept device buffer and copied
-#: out: wrapping each new output array in a buffer (zero copy) costs about
-#: a millisecond of driver set-up per call on PoCL, more than the copy.
-ZERO_COPY_MIN_BYTES = 1 << 20
-
-
 def _import_cl():
     import pyopencl as cl  # noqa: PLC0415 - optional dependency, imported lazily
     import pyopencl.cltypes  # noqa: F401, PLC0415 - make_float4
@@ -142,6 +137,21 @@ def kind_options(kind):
     )
 
 
+def launch_width(backend, width):
+    """Work-group width of warp_image for outputs ``width`` px wide: the
+    narrowest of :data:`NARROW_LOCAL_X` that covers a row; wider rows are
+    cut into the fewest groups of at most the backend's width, each a
+    multiple of :data:`GROUP_STEP` px, so that a row runs few padding
+    work-items (a 3840 px row in groups of 1024 ran 256 that redid its last
+    pixel; four groups of 960 run none)."""
+    fits = [x for x in NARROW_LOCAL_X if width <= x < backend.local_x and x % backend.lanes == 0]
+    if fits:
+        return fits[0]
+    groups = -(-width // backend.local_x)
+    step = GROUP_STEP if backend.local_x % GROUP_STEP == 0 else backend.local_x
+    return min(backend.local_x, -(-width // (groups * step)) * step)
+
+
 def sampling_options(dtype, channels, order, mode):
     """Build options (defines) for warp_image on one kind of sampling."""
     dtype = np.dtype(dtype)
@@ -192,6 +202,8 @@ class Backend:
         self._kernels = {}  # build options -> {kernel name: Kernel}
         self._buffers = {}  # (role, nbytes) -> Buffer
         self._block_cache = None  # (block bytes, its buffer, kind options) of the last upload
+        self._kinds = {}  # block bytes -> kind options, of recent blocks
+        self._jobs = JobCache()  # prepared jobs of plain warp_image calls
         self._lock = threading.Lock()
 
     def __repr__(self):
@@ -277,12 +289,40 @@ class Backend:
             self._cl.enqueue_copy(self.queue, out, dst)
         self.queue.finish()
 
+    def block_kind(self, block):
+        """The kind options of float32 ``block``, remembered by its bytes for
+        the last few blocks; ValueError for a block no kernel knows."""
+        data = block.tobytes()
+        options = self._kinds.get(data)
+        if options is None:
+            options = kind_options(describe(block))
+            if len(self._kinds) >= 16:
+                self._kinds.pop(next(iter(self._kinds)))
+            self._kinds[data] = options
+        return options
+
+    def image_program(self, dtype, channels, order, mode, width, antialias, kind):
+        """(kernel name, build options, work-group width) of warp_image for
+        one kind of call: ``kind`` (:func:`kind_options`), sampling, and
+        outputs ``width`` px wide."""
+        local_x = launch_width(self, width)
+        options = (*kind, *sampling_options(dtype, channels, order, mode), f"-DFW_LOCAL_X={local_x}",
+                   f"-DFW_VN={self.lanes}")
+        if antialias:  # antialiased programs (FW_AA) have the kernel warp_image_aa besides warp_image
+            return "warp_image_aa", (*options, "-DFW_AA=1"), local_x
+        return "warp_image", options, local_x
+
     def warp_image(self, image, transform, output_shape, *, order, mode, cval, antialias=False):
+        block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
         with self._lock:
-            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval, antialias=antialias)
-            job.set_map(transform)
-            job.launch()
-            return job.read()
+            job = self._jobs.get(self, image, output_shape, order, mode, cval, antialias, self.block_kind(block))
+            job.set_block(block)
+            return job.run(image)
+
+    def bind(self, transform):
+        """``transform`` prepared for many images (:class:`~.opencl_prepared.BoundMap`):
+        its block packed and checked once."""
+        return BoundMap(self, transform)
 
     def warp_into(self, image, transform, output_shape, out, *, order, mode, cval, antialias=False):
         """:meth:`warp_image` on ``pyopencl.array.Array`` s of this context
@@ -344,14 +384,8 @@ class DeviceWarp:
         self.backend, self.image_shape, self.output_shape = be, (h, w, c), (oh, ow)
         self.out = np.empty((oh, ow, c), dtype=image.dtype) if out is None else out
         self._cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
-        self._sampling = sampling_options(image.dtype, c, order, mode)
-        fits = [x for x in NARROW_LOCAL_X if ow <= x < be.local_x and x % be.lanes == 0]
-        self.local_x = fits[0] if fits else be.local_x
-        self._sampling += (f"-DFW_LOCAL_X={self.local_x}", f"-DFW_VN={be.lanes}")
-        #: antialiased programs (FW_AA) have the kernel warp_image_aa besides warp_image
-        self._kernel_name = "warp_image_aa" if antialias else "warp_image"
-        if antialias:
-            self._sampling += ("-DFW_AA=1",)
+        self._sampling = (image.dtype, c, order, mode, ow, antialias)  # chosen with the map's kind by set_map
+        self.local_x = launch_width(be, ow)
         if isinstance(image, np.ndarray):
             self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
             cl.enqueue_copy(be.queue, self._src, image)
@@ -373,7 +407,8 @@ class DeviceWarp:
         be = self.backend
         (h, w, _), (oh, ow) = self.image_shape, self.output_shape
         block, kind = be._upload_block(transform.inverse)
-        kern = be.kernel(self._kernel_name, kind + self._sampling)
+        name, options, _ = be.image_program(*self._sampling, kind)
+        kern = be.kernel(name, options)
         kern.set_args(block, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), self._cval4)
         self._kernel = kern
 

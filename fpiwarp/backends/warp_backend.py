@@ -34,13 +34,14 @@ import numpy as np
 from .._errors import ArgumentError
 from ..block import MAX_ROWS, describe
 from ..block.sampling_rules import MODES
+from .warp_prepared import BoundMap, JobCache
 
 #: Environment variable naming the Warp device, e.g. "cpu" or "cuda:0".
 DEVICE_ENV = "FPIWARP_WARP_DEVICE"
 #: Environment variable with the number of CPU threads (CPU device only).
 THREADS_ENV = "FPIWARP_WARP_THREADS"
 #: Below this many work items a CPU call is one launch on the calling thread.
-MIN_ITEMS_PER_THREAD = 1 << 16
+MIN_ITEMS_PER_THREAD = 1 << 14
 
 _TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
 _init_lock = threading.Lock()
@@ -177,17 +178,33 @@ class Backend:
         self._block_staging = self._block if self._on_cpu else wp.zeros_like(self._block, device="cpu", pinned=True)
         self._block_host = self._block_staging.numpy()  # a (rows, 4) float32 view of host memory
         self._buffers = {}
+        self._jobs = JobCache()  # prepared jobs of plain warp_image calls
+        self.block_kind = None  # what the kernels specialize on, of the block uploaded last
         self._aa_loaded = False  # the antialiased kernels' module, loaded on first use
 
     def __repr__(self):
         return f"<fpiwarp warp backend on {self.device}, {self.threads} thread(s)>"
+
+    def band_count(self, rows, cols=None):
+        """Bands of rows a launch over (rows, cols) is split into: one per
+        thread on the CPU where each gets enough work, else one."""
+        return min(self.threads, max(1, rows * (cols or 1) // MIN_ITEMS_PER_THREAD))
+
+    def run_launches(self, launches):
+        """Replay recorded launches (``Launch.launch``), from the thread pool
+        when there are several (the bands of one call)."""
+        if len(launches) == 1:
+            launches[0].launch()
+            return
+        for future in [self._pool.submit(launch.launch) for launch in launches]:
+            future.result()
 
     def _launch(self, kernel, rows, cols, inputs):
         """Launch ``kernel`` over (rows, cols), or over rows when cols is None;
         the kernel's last input is the first row. On the CPU, large launches
         are split into one band of rows per thread."""
         wp = self._wp
-        bands = min(self.threads, max(1, rows * (cols or 1) // MIN_ITEMS_PER_THREAD))
+        bands = self.band_count(rows, cols)
 
         def launch(r0, r1):
             dim = r1 - r0 if cols is None else (r1 - r0, cols)
@@ -206,11 +223,12 @@ class Backend:
         (on CUDA through a pinned host copy of it). A block no kernel knows
         raises ValueError before the upload (:func:`fpiwarp.block.describe`)."""
         block = transform.params()
-        describe(block)
+        kind = describe(block)
         rows = block.shape[0]
         self._block_host[:rows] = block
         if not self._on_cpu:
             self._wp.copy(self._block, self._block_staging, count=rows)
+        self.block_kind = tuple((s.core, s.n_regions) for s in kind.stages)
         return self._block
 
     def _buffer(self, key, shape, dtype):
@@ -257,6 +275,10 @@ class Backend:
         """Backward warp: each output pixel samples the source at ``transform.inverse``
         (antialiased: averaged over its footprint, see fpiwarp._antialias)."""
         with self._lock:
+            if not antialias:  # a job per kind of call (kernel specialized for the map's kind)
+                block = self._upload_block(transform.inverse)
+                job = self._jobs.get(self, block, image, output_shape, order, mode, cval, self.block_kind)
+                return job.run(image)
             job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval, antialias=antialias)
             job.set_map(transform)
             job.launch()
@@ -281,6 +303,11 @@ class Backend:
             if points.shape[0]:
                 self._launch(self._k.map_points_kernel, points.shape[0], None, [blk, points, out])
         return out
+
+    def bind(self, transform):
+        """``transform`` prepared for many images (:class:`~.warp_prepared.BoundMap`):
+        its block packed and uploaded once."""
+        return BoundMap(self, transform)
 
     def antialias_kernels(self):
         """The module of antialiased kernels, loaded on first use."""
@@ -329,17 +356,24 @@ class DeviceWarp:
         else:
             self._result = None
             self._out = be._buffer("warped", (oh, ow, channels), scalar)
-        self._kernel = be._k.IMAGE_KERNELS[order]
-        self._tail = [MODES.index(mode), wp.vec4(*cv.tolist()), _TOP[dtype]]
-        if antialias:  # one kernel for every order, which it takes as an argument
+        self._kernel = None  # chosen by set_map, for the map's kind
+        self._tail = [wp.vec4(*cv.tolist())]
+        self._sampling = (int(order), channels, MODES.index(mode), dtype)
+        if antialias:  # one kernel for every order and map, which takes them as arguments
             self._kernel = be.antialias_kernels().warp_antialias
-            self._tail = [int(order), *self._tail]
+            self._tail = [int(order), MODES.index(mode), self._tail[0], _TOP[dtype]]
+        self._antialias = antialias
         self._block = None
 
     def set_map(self, transform):
         """Upload the parameter block of ``transform.inverse`` (the map from
         output to source)."""
-        self._block = self.backend._upload_block(transform.inverse)
+        be = self.backend
+        self._block = be._upload_block(transform.inverse)
+        if not self._antialias:
+            from fpiwarp.kernels import warp_kinds  # noqa: PLC0415 - imported with Warp
+
+            self._kernel = warp_kinds.image_kernel(be.block_kind, *self._sampling)
 
     def launch(self):
         """Run the kernel over the output (on CUDA without waiting for it)."""

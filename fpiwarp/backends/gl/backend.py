@@ -3,6 +3,7 @@ mesh path as a function of the public API (:func:`warp_image_mesh`)."""
 
 import numpy as np
 
+from ...block import describe
 from ...validation import (
     check_cval,
     check_image,
@@ -53,6 +54,27 @@ class Backend:
         check_thread()
         return self.warper.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
                                       hardware_filter=hardware_filter, antialias=antialias)
+
+    def bind(self, transform):
+        """``transform`` prepared for many images: its inverse's block packed
+        and checked once (:class:`BoundMap`)."""
+        return BoundMap(self, transform)
+
+
+class BoundMap:
+    """One map bound to the gl backend: the block of its inverse packed
+    and checked once; programs, textures and targets are the warper's,
+    kept across calls."""
+
+    def __init__(self, backend, transform):
+        self.backend = backend
+        self.block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
+        describe(self.block)  # refuse a block no kernel knows now
+
+    def warp_image(self, image, output_shape, *, order, mode, cval, hardware_filter=False, antialias=False):
+        check_thread()
+        return self.backend.warper.warp_block(image, self.block, output_shape, order=order, mode=mode, cval=cval,
+                                              hardware_filter=hardware_filter, antialias=antialias)
 
 
 def warp_image_mesh(image, transform, output_shape=None, *, order=1, mode="constant", cval=0,

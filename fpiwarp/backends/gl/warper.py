@@ -202,6 +202,14 @@ class GLWarper:
         ``antialias=True`` averages each pixel's footprint (fpiwarp._antialias;
         software sampling, FPW_ANTIALIAS in glsl/fpiwarp_map.glsl).
         """
+        return self.warp_block(image, transform.inverse.params(), output_shape, order=order, mode=mode, cval=cval,
+                               hardware_filter=hardware_filter, antialias=antialias)
+
+    def warp_block(self, image, block, output_shape, *, order=1, mode="constant", cval=None, hardware_filter=False,
+                   antialias=False):
+        """:meth:`warp_image` by the map from output to source whose
+        parameter block is ``block`` (``transform.inverse.params()``, packed
+        once by a bound map)."""
         image, cval = check_sampling(image, order, mode, cval)
         if hardware_filter and antialias:
             raise ValueError("hardware_filter and antialias cannot be combined: antialiasing samples in software")
@@ -210,7 +218,7 @@ class GLWarper:
                 raise ValueError(f"hardware_filter supports order 0 or 1, got {order}")
             if mode not in HW_MODES:
                 raise ValueError(f"hardware_filter supports modes {HW_MODES}, got {mode!r}")
-        stages = self.set_map(transform.inverse.params())
+        stages = self.set_map(block)
         return self._render(image, output_shape, order, mode, cval, None, hardware_filter, stages, antialias)
 
     # ---- per vertex, rasterized

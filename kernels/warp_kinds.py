@@ -1,0 +1,207 @@
+"""NVIDIA Warp image kernels specialized per kind of map and of sampling.
+
+:mod:`fpiwarp.kernels.warp_map` holds one generic kernel per order that
+reads every decision from the parameter block and its arguments at run
+time (stage count, core, regions, channels, border mode). Here a kernel is
+generated for one :class:`fpiwarp.block.BlockKind` (the stages' cores and
+region counts) and one kind of sampling (order, channels, border mode,
+dtype), as the OpenCL program (``-DFW_KIND_k``) and the GL shaders
+(``stages`` of a ProgramKey) are: the stage chain, the core's branch, the
+region loop, the channel loop and the border rule are fixed when Warp
+compiles it (``wp.static``), so the compiler drops what a kind does not use
+and unrolls the rest. Numbers of TPS centers and Newton steps stay
+run-time values (read from the block), so maps of one shape but another
+number of centers share a kernel.
+
+The arithmetic is :mod:`fpiwarp.kernels.warp_map`'s own functions (the TPS
+cores, the Möbius parts, the sampling helpers): these kernels only fix
+what is constant for a kind, so they compute what the generic kernels
+compute. Each kernel is a closure in a module of its own
+(``module="unique"``), compiled on first use per kind and cached on disk
+by Warp; :func:`image_kernel` keeps the kernels made in this process.
+"""
+
+import threading
+
+import warp as wp
+from fpiwarp.kernels import warp_map as M
+
+wp.set_module_options({"enable_backward": False})
+
+_cache = {}
+_lock = threading.Lock()
+
+
+def kind_key(kind):
+    """What a kernel specializes on for a :class:`fpiwarp.block.BlockKind`:
+    each stage's (core, number of regions)."""
+    return tuple((s.core, s.n_regions) for s in kind.stages)
+
+
+def _stage_func(s0, core, n_regions):
+    """The stage at block row ``s0`` for one (core, regions) kind."""
+    S0 = wp.constant(s0)
+    CORE = wp.constant(core)
+    NREG = wp.constant(n_regions)
+
+    @wp.func
+    def stage(blk: wp.array(dtype=wp.vec4), z: wp.vec2):
+        if wp.static(NREG > 0):
+            best = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+            outside = wp.vec2(wp.nan, wp.nan)
+            for r in range(NREG):
+                line = blk[S0 + M.ROW_REGIONS + 2 * r]
+                sim = blk[S0 + M.ROW_REGIONS + 2 * r + 1]
+                dz = z - M.lo(line)
+                nrm = M.hi(line)
+                depth = dz[0] * nrm[0] + dz[1] * nrm[1]
+                if depth > best:
+                    best = depth
+                    outside = M.cmul(M.lo(sim), z) + M.hi(sim)
+            if best > 0.0:
+                return outside
+        u = z - M.lo(blk[S0 + M.ROW_PRE])
+        p = M.cdiv(M.cmul(M.lo(blk[S0 + M.ROW_SCALE]), u), wp.vec2(1.0, 0.0) - M.cmul(M.hi(blk[S0 + M.ROW_PRE]), u))
+        if wp.static(CORE == M.CORE_AFFINE):
+            p = M.cmul(M.lo(blk[S0 + M.ROW_L12]), p) + M.cmul(M.hi(blk[S0 + M.ROW_L12]), M.conj(p)) + M.lo(
+                blk[S0 + M.ROW_L3]
+            )
+        elif wp.static(CORE == M.CORE_TPS or CORE == M.CORE_TPS_PAIRS):
+            hdr = blk[S0 + M.ROW_HEADER]
+            p = M.tps_value(blk, S0, int(hdr[1]), p, wp.static(CORE == M.CORE_TPS_PAIRS))
+        else:
+            hdr = blk[S0 + M.ROW_HEADER]
+            p = M.tps_newton(blk, S0, int(hdr[1]), int(hdr[3]), p, wp.static(CORE == M.CORE_TPS_PAIRS_INVERSE))
+        post = blk[S0 + M.ROW_POST]
+        return M.hi(post) + M.cdiv(M.cmul(M.hi(blk[S0 + M.ROW_SCALE]), p), wp.vec2(1.0, 0.0) - M.cmul(M.lo(post), p))
+
+    return stage
+
+
+def _then(first, second):
+    """``second`` after ``first``: two stages in order."""
+
+    @wp.func
+    def chained(blk: wp.array(dtype=wp.vec4), z: wp.vec2):
+        return second(blk, first(blk, z))
+
+    return chained
+
+
+def evaluate_func(key):
+    """A ``wp.func`` (blk, z) -> w evaluating a block of kind ``key``."""
+    ev = None
+    for k, (core, n_regions) in enumerate(key):
+        stage = _stage_func(1 + k * M.STAGE_ROWS, core, n_regions)
+        ev = stage if ev is None else _then(ev, stage)
+    return ev
+
+
+def _make_image_kernel(key, order, channels, mode, dtype):
+    evaluate = evaluate_func(key)
+    T = wp.dtype_from_numpy(dtype)
+    C = wp.constant(channels)
+    MODE = wp.constant(mode)
+    ORDER = wp.constant(order)
+    TOP = wp.constant(255.0 if T is wp.uint8 else 65535.0 if T is wp.uint16 else 0.0)
+
+    @wp.func
+    def put(out: wp.array3d(dtype=T), y: int, x: int, c: int, v: float):
+        if wp.static(TOP > 0.0):
+            v = wp.clamp(wp.floor(v + 0.5), 0.0, TOP)
+        out[y, x, c] = T(v)
+
+    @wp.kernel(module="unique")
+    def warp_kind(
+        blk: wp.array(dtype=wp.vec4),
+        img: wp.array3d(dtype=T),
+        out: wp.array3d(dtype=T),
+        cval: wp.vec4,
+        row0: int,
+    ):
+        y, x = wp.tid()
+        y = y + row0
+        s = evaluate(blk, wp.vec2(float(x), float(y)))
+        if not M.in_range(s):
+            for c in range(C):
+                put(out, y, x, c, cval[c])
+            return
+        h = img.shape[0]
+        w = img.shape[1]
+        sx = M.clip_coord(s[0])
+        sy = M.clip_coord(s[1])
+        if wp.static(ORDER == 0):
+            ix = int(wp.floor(sx + 0.5))
+            iy = int(wp.floor(sy + 0.5))
+            ok = M.inside(ix, w, MODE) and M.inside(iy, h, MODE)
+            col = M.border_index(ix, w, MODE)
+            row = M.border_index(iy, h, MODE)
+            for c in range(C):
+                put(out, y, x, c, M.tap(float(img[row, col, c]), cval[c], ok))
+        elif wp.static(ORDER == 1):
+            fx = wp.floor(sx)
+            fy = wp.floor(sy)
+            tx = sx - fx
+            ty = sy - fy
+            x0 = int(fx)
+            y0 = int(fy)
+            c0 = M.border_index(x0, w, MODE)
+            c1 = M.border_index(x0 + 1, w, MODE)
+            r0 = M.border_index(y0, h, MODE)
+            r1 = M.border_index(y0 + 1, h, MODE)
+            in00 = M.inside(y0, h, MODE) and M.inside(x0, w, MODE)
+            in01 = M.inside(y0, h, MODE) and M.inside(x0 + 1, w, MODE)
+            in10 = M.inside(y0 + 1, h, MODE) and M.inside(x0, w, MODE)
+            in11 = M.inside(y0 + 1, h, MODE) and M.inside(x0 + 1, w, MODE)
+            for c in range(C):
+                cv = cval[c]
+                v00 = M.tap(float(img[r0, c0, c]), cv, in00)
+                v01 = M.tap(float(img[r0, c1, c]), cv, in01)
+                v10 = M.tap(float(img[r1, c0, c]), cv, in10)
+                v11 = M.tap(float(img[r1, c1, c]), cv, in11)
+                put(out, y, x, c, (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11))
+        else:
+            fx = wp.floor(sx)
+            fy = wp.floor(sy)
+            wx = M.cubic_weights(sx - fx)
+            wy = M.cubic_weights(sy - fy)
+            x0 = int(fx) - 1
+            y0 = int(fy) - 1
+            cols = wp.vec4i(
+                M.border_index(x0, w, MODE),
+                M.border_index(x0 + 1, w, MODE),
+                M.border_index(x0 + 2, w, MODE),
+                M.border_index(x0 + 3, w, MODE),
+            )
+            rows = wp.vec4i(
+                M.border_index(y0, h, MODE),
+                M.border_index(y0 + 1, h, MODE),
+                M.border_index(y0 + 2, h, MODE),
+                M.border_index(y0 + 3, h, MODE),
+            )
+            for c in range(C):
+                cv = cval[c]
+                v = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+                for j in range(4):
+                    acc = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+                    for i in range(4):
+                        ok = M.inside(y0 + j, h, MODE) and M.inside(x0 + i, w, MODE)
+                        acc = acc + wx[i] * M.tap(float(img[rows[j], cols[i], c]), cv, ok)
+                    v = v + wy[j] * acc
+                put(out, y, x, c, v)
+
+    return warp_kind
+
+
+def image_kernel(key, order, channels, mode, dtype):
+    """The image kernel for a map kind ``key`` (see :func:`kind_key`),
+    ``order`` (0, 1, 3), ``channels`` (1-4), border ``mode`` (an index
+    of :data:`fpiwarp.block.sampling_rules.MODES`) and a numpy ``dtype``;
+    made once per process. Its arguments: (block, image, out, cval vec4,
+    first row)."""
+    full = (tuple(key), int(order), int(channels), int(mode), str(dtype))
+    with _lock:
+        kernel = _cache.get(full)
+        if kernel is None:
+            kernel = _cache[full] = _make_image_kernel(*full[:4], dtype)
+    return kernel
