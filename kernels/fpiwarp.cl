@@ -26,6 +26,26 @@
 #define FW_LOCAL_X 64
 #endif
 
+/* FW_BATCH (fpiwarp/backends/opencl_batch.py): one launch warps (or maps
+ * the points of) many images, launch dimension 2 naming which. Item z of
+ * the launch reads block z of the stacked blocks (block_rows float4 rows
+ * each; 0 shares one block) and item which[z] of the stacked inputs and
+ * outputs (in_items, out_items values apart). Everything else is the
+ * single kernel's code, so a batch equals the loop bit for bit. */
+#ifdef FW_BATCH
+#define FW_BATCH_ARGS , __global const int *restrict which, int block_rows
+#define FW_BATCH_SELECT(fw_in, fw_out, in_items, out_items) \
+    do {                                                    \
+        size_t fw_z = get_global_id(2), fw_n = which[fw_z]; \
+        block += fw_z * block_rows;                         \
+        fw_in += fw_n * (size_t)(in_items);                 \
+        fw_out += fw_n * (size_t)(out_items);               \
+    } while (0)
+#else
+#define FW_BATCH_ARGS
+#define FW_BATCH_SELECT(fw_in, fw_out, in_items, out_items)
+#endif
+
 /* out[i] = map(pts[i]) for i < n; points are interleaved (x, y).
  *
  * Work-groups of FW_LOCAL_X points (the host rounds the global size up;
@@ -37,8 +57,9 @@
  * vectorizer. */
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
 void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
-                __global FW_POINT *restrict out, int n)
+                __global FW_POINT *restrict out, int n FW_BATCH_ARGS)
 {
+    FW_BATCH_SELECT(pts, out, 2 * n, 2 * n);
     __local float px[FW_LOCAL_X], py[FW_LOCAL_X];
     int i = get_global_id(0), l = get_local_id(0);
     int at = min(i, n - 1); /* padding work-items repeat the last point */
@@ -84,8 +105,9 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
  * work-item in vector types, by the first FW_LOCAL_X / FW_VN work-items. */
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
 void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int h,
-                __global FW_T *restrict dst, int ow, int oh, float4 cval)
+                __global FW_T *restrict dst, int ow, int oh, float4 cval FW_BATCH_ARGS)
 {
+    FW_BATCH_SELECT(src, dst, w * h * FW_C, ow * oh * FW_C);
     __local float pos_x[FW_LOCAL_X], pos_y[FW_LOCAL_X];
     int l = get_local_id(0), oy = get_global_id(1);
     int gx0 = get_group_id(0) * FW_LOCAL_X; /* the group's first pixel */
@@ -145,8 +167,9 @@ FW_FN float fw_aa_lanes_min(fw_fv v)
  * loop as outside it, so skipping it saves one of the 4 or more. */
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
 void warp_image_aa(fw_block_t block, __global const FW_T *restrict src, int w, int h,
-                   __global FW_T *restrict dst, int ow, int oh, float4 cval)
+                   __global FW_T *restrict dst, int ow, int oh, float4 cval FW_BATCH_ARGS)
 {
+    FW_BATCH_SELECT(src, dst, w * h * FW_C, ow * oh * FW_C);
     __local float pos_x[FW_LOCAL_X], pos_y[FW_LOCAL_X];
     __local float exx[FW_LOCAL_X], exy[FW_LOCAL_X], eyx[FW_LOCAL_X], eyy[FW_LOCAL_X];
     int l = get_local_id(0), oy = get_global_id(1);

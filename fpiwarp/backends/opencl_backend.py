@@ -275,6 +275,27 @@ class Backend:
             self._read_back(dst, out)
         return out.astype(np.float64, copy=False).reshape(shape)
 
+    @property
+    def point_options(self):
+        """Build options of map_points' point type (double where the device has fp64)."""
+        return self._point_options
+
+    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):
+        """A validated (N, H, W, C) stack warped by one map or one map per
+        image, one launch per kind of map (see :mod:`.opencl_batch`)."""
+        from . import opencl_batch  # noqa: PLC0415 - loaded with the first batch
+
+        with self._lock:
+            return opencl_batch.warp_batch(self, stack, transforms, output_shape, order=order, mode=mode, cval=cval,
+                                           antialias=antialias, transfer=transfer)
+
+    def map_points_batch(self, transforms, points):
+        """float64 (N, P, 2) point sets mapped by one map or one map each."""
+        from . import opencl_batch  # noqa: PLC0415 - loaded with the first batch
+
+        with self._lock:
+            return opencl_batch.map_points_batch(self, transforms, points)
+
     def _read_back(self, dst, out, zero_copy=None):
         """Make the kernel's results visible in ``out`` and wait for them:
         on a zero-copy buffer (``out`` is its host memory) mapping does it,

@@ -1,0 +1,240 @@
+"""Batches on the "opencl" backend: many images (or point sets) per launch.
+
+The kernels of ``kernels/fpiwarp.cl`` built with ``-DFW_BATCH`` take a
+third launch dimension: item z reads block z of a buffer of stacked
+parameter blocks and image ``which[z]`` of a stacked source and output
+(see ``FW_BATCH_SELECT`` there). Everything else is the single image's
+code, so a batch equals the loop of :meth:`Backend.warp_image` bit for
+bit.
+
+Kinds of map
+------------
+A program is specialised for one kind of map (:func:`kind_options`), so
+the maps of a batch are grouped by kind and each group runs as one
+launch: a batch whose maps are all of one kind (one map for all, or N
+FPIs of the same number of control points) is one launch; a batch
+mixing k kinds is k launches. Nothing is refused for mixing kinds.
+
+Bounds
+------
+A launch reads its blocks from ``__constant`` memory, so it holds at most
+``max_constant_buffer_size // block bytes`` maps (a larger group is split
+into launches of that many). The images go through device buffers in
+chunks of at most :data:`CHUNK_BYTES` (and the device's
+``max_mem_alloc_size``), never fewer than one image, so a batch is never
+refused for its size if each image passes :mod:`fpiwarp.validation`.
+
+Transfers
+---------
+On a device sharing host memory (PoCL on a CPU) the output chunks are the
+caller's array itself (``USE_HOST_PTR``) and one chunk is the whole batch
+up to :data:`CHUNK_BYTES`. On other devices (a GPU) the batch goes in
+chunks of :data:`PIPELINE_CHUNK_BYTES` through two sets of device buffers
+and three queues, so that the upload of chunk i + 1 and the download of
+chunk i - 1 overlap the kernels of chunk i (``transfer="pipelined"``;
+``"serial"`` does the same on one queue, for comparison).
+"""
+
+import numpy as np
+
+from ..block import describe
+from .opencl_backend import IMAGE_SLACK, NARROW_LOCAL_X, kind_options, sampling_options
+
+#: Bytes of input plus output one chunk of a batch holds at most (each
+#: chunk holds at least one image).
+CHUNK_BYTES = 256 << 20
+#: Chunk size of the pipelined transfers: small enough that a batch is a
+#: few chunks whose copies overlap the kernels of their neighbours.
+PIPELINE_CHUNK_BYTES = 32 << 20
+#: The ways a batch may reach the device (see the module docstring).
+TRANSFERS = ("zero_copy", "pipelined", "serial")
+
+
+def _cl():
+    import pyopencl as cl  # noqa: PLC0415 - optional dependency, imported lazily
+
+    return cl
+
+
+def block_groups(transforms, n):
+    """Stacked float32 blocks by kind: a list of (kind options, block rows
+    (0: one block shared by all images), blocks (k, rows, 4), image
+    indices (k,) int32). One map gives one group of all ``n`` images.
+    A block no kernel knows raises ValueError (:func:`describe`) first."""
+    blocks = [np.ascontiguousarray(t.params(), dtype=np.float32) for t in transforms]
+    kinds = [kind_options(describe(b)) for b in blocks]
+    if len(blocks) == 1:
+        return [(kinds[0], 0, blocks[0][None], np.arange(n, dtype=np.int32))]
+    groups = {}
+    for i, kind in enumerate(kinds):
+        groups.setdefault(kind, []).append(i)
+    return [
+        (kind, blocks[idx[0]].shape[0], np.stack([blocks[i] for i in idx]), np.asarray(idx, dtype=np.int32))
+        for kind, idx in groups.items()
+    ]
+
+
+def chunk_ranges(n, item_bytes, limit):
+    """[start, stop) ranges of at most ``limit`` bytes of ``item_bytes``
+    items each (at least one item per range) covering ``n`` items."""
+    per = max(1, int(limit // max(item_bytes, 1)))
+    return [(a, min(n, a + per)) for a in range(0, n, per)]
+
+
+def _launches(backend, groups, a, b):
+    """(kind options, block rows, blocks, chunk-relative image indices) of
+    the launches for images [a, b): each kind's images in the chunk, split
+    so that a launch's blocks fit the device's constant memory."""
+    cap = backend.device.max_constant_buffer_size
+    for kind, rows, blocks, images in groups:
+        keep = (images >= a) & (images < b)
+        if not keep.any():
+            continue
+        sel, idx = (blocks, images[keep]) if rows == 0 else (blocks[keep], images[keep])
+        per = len(idx) if rows == 0 else max(1, cap // (rows * 16))
+        for s in range(0, len(idx), per):
+            yield kind, rows, sel if rows == 0 else sel[s:s + per], (idx[s:s + per] - a).astype(np.int32)
+
+
+def _small_buffer(cl, context, array):
+    mf = cl.mem_flags
+    return cl.Buffer(context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(array))
+
+
+def _local_x(backend, ow):
+    """warp_image's work-group width for rows of ``ow`` pixels (as DeviceWarp chooses it)."""
+    fits = [x for x in NARROW_LOCAL_X if ow <= x < backend.local_x and x % backend.lanes == 0]
+    return fits[0] if fits else backend.local_x
+
+
+def default_transfer(backend):
+    """"zero_copy" on a device sharing host memory, else "pipelined"."""
+    return "zero_copy" if backend.zero_copy else "pipelined"
+
+
+def warp_batch(backend, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):
+    """Warp a validated (N, H, W, C) stack by one map or one per image
+    (``transforms``: the user's maps; the kernels read their inverses);
+    (N, rows, cols, C) of the stack's dtype. Call under the backend's lock."""
+    cl = _cl()
+    n, h, w, c = stack.shape
+    oh, ow = output_shape
+    out = np.empty((n, oh, ow, c), dtype=stack.dtype)
+    groups = block_groups([t.inverse for t in transforms], n)
+    transfer = transfer or default_transfer(backend)
+    if transfer not in TRANSFERS:
+        raise ValueError(f"transfer must be one of {TRANSFERS}, got {transfer!r}")
+    local_x = _local_x(backend, ow)
+    sampling = sampling_options(stack.dtype, c, order, mode) + (f"-DFW_LOCAL_X={local_x}", f"-DFW_VN={backend.lanes}")
+    name = "warp_image_aa" if antialias else "warp_image"
+    if antialias:
+        sampling += ("-DFW_AA=1",)
+    cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
+    item_in, item_out = stack[0].nbytes, out[0].nbytes
+    cols = -(-ow // local_x) * local_x
+
+    keep = []  # the launches' block and index buffers, alive until the end
+
+    def launch(queue, src, dst, a, b, wait_for):
+        events = []
+        for kind, rows, blocks, which in _launches(backend, groups, a, b):
+            kern = backend.kernel(name, kind + sampling + ("-DFW_BATCH=1",))
+            keep.append((_small_buffer(cl, backend.context, blocks), _small_buffer(cl, backend.context, which)))
+            kern.set_args(keep[-1][0], src, np.int32(w), np.int32(h), dst, np.int32(ow), np.int32(oh), cval4,
+                          keep[-1][1], np.int32(rows))
+            events.append(cl.enqueue_nd_range_kernel(queue, kern, (cols, oh, len(which)), (local_x, 1, 1),
+                                                     wait_for=wait_for))
+        return events
+
+    limit = min(CHUNK_BYTES if transfer == "zero_copy" else PIPELINE_CHUNK_BYTES, backend.device.max_mem_alloc_size)
+    chunks = chunk_ranges(n, item_in + item_out, limit)
+    if transfer == "zero_copy":
+        _run_zero_copy(cl, backend, stack, out, chunks, launch)
+    else:
+        _run_copies(cl, backend, stack, out, chunks, launch, transfer == "pipelined")
+    return out
+
+
+def _run_zero_copy(cl, backend, stack, out, chunks, launch):
+    """Each chunk copied into one device buffer; the kernels write the
+    caller's output in place (USE_HOST_PTR), made visible by a map."""
+    mf, queue = cl.mem_flags, backend.queue
+    per = chunks[0][1] - chunks[0][0]
+    src = cl.Buffer(backend.context, mf.READ_ONLY, per * stack[0].nbytes + IMAGE_SLACK)
+    for a, b in chunks:
+        cl.enqueue_copy(queue, src, stack[a:b])
+        dst = cl.Buffer(backend.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
+        launch(queue, src, dst, a, b, None)
+        mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
+        event.wait()
+        del mapped
+    queue.finish()
+
+
+def _run_copies(cl, backend, stack, out, chunks, launch, pipelined):
+    """Chunks through two sets of device buffers: uploads, kernels and
+    downloads on three queues ordered by events (pipelined), or all on
+    the backend's queue one after the other."""
+    mf, ctx = cl.mem_flags, backend.context
+    per = chunks[0][1] - chunks[0][0]
+    slots = [(cl.Buffer(ctx, mf.READ_ONLY, per * stack[0].nbytes + IMAGE_SLACK),
+              cl.Buffer(ctx, mf.WRITE_ONLY, per * out[0].nbytes)) for _ in range(2 if pipelined else 1)]
+    up, down = (cl.CommandQueue(ctx), cl.CommandQueue(ctx)) if pipelined else (backend.queue, backend.queue)
+    pending = [([], []) for _ in slots]  # per slot: (its last kernels, its last download)
+    for i, (a, b) in enumerate(chunks):
+        s = i % len(slots)
+        src, dst = slots[s]
+        kernels_before, download_before = pending[s]
+        ev_up = cl.enqueue_copy(up, src, stack[a:b], is_blocking=False, wait_for=kernels_before or None)
+        ev_k = launch(backend.queue, src, dst, a, b, [ev_up, *download_before])
+        ev_down = cl.enqueue_copy(down, out[a:b], dst, is_blocking=False, wait_for=ev_k)
+        pending[s] = (ev_k, [ev_down])
+    for queue in {up, down, backend.queue}:
+        queue.finish()
+
+
+def map_points_batch(backend, transforms, points):
+    """Map float64 (N, P, 2) ``points[i]`` by ``transforms[i]`` (or all by
+    one map); float64 (N, P, 2). One launch per kind of map (and per
+    constant-memory load of blocks, and per :data:`CHUNK_BYTES` of point
+    sets). Call under the backend's lock."""
+    cl = _cl()
+    n, p, _ = points.shape
+    dtype = np.float64 if backend.has_fp64 else np.float32
+    pts = np.ascontiguousarray(points, dtype=dtype)
+    out = np.empty_like(pts)
+    if p == 0 or n == 0:
+        return out.astype(np.float64)
+    groups = block_groups(transforms, n)
+    options = backend.point_options + (f"-DFW_LOCAL_X={backend.local_x}", "-DFW_BATCH=1")
+    limit = min(CHUNK_BYTES, backend.device.max_mem_alloc_size)
+    for a, b in chunk_ranges(n, pts[0].nbytes, limit):
+        _map_chunk(cl, backend, groups, options, pts, out, a, b)
+    backend.queue.finish()
+    return out.astype(np.float64, copy=False)
+
+
+def _map_chunk(cl, backend, groups, options, pts, out, a, b):
+    """map_points over point sets [a, b): one launch per kind."""
+    mf, ctx, queue = cl.mem_flags, backend.context, backend.queue
+    p = pts.shape[1]
+    total = -(-p // backend.local_x) * backend.local_x
+    if backend.zero_copy:
+        src = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pts[a:b])
+        dst = cl.Buffer(ctx, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
+    else:
+        src = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=pts[a:b])
+        dst = cl.Buffer(ctx, mf.WRITE_ONLY, out[a:b].nbytes)
+    keep = []  # the launches' block and index buffers, alive until the chunk is read
+    for kind, rows, blocks, which in _launches(backend, groups, a, b):
+        kern = backend.kernel("map_points", kind + options)
+        keep.append((_small_buffer(cl, ctx, blocks), _small_buffer(cl, ctx, which)))
+        kern.set_args(keep[-1][0], src, dst, np.int32(p), keep[-1][1], np.int32(rows))
+        cl.enqueue_nd_range_kernel(queue, kern, (total, 1, len(which)), (backend.local_x, 1, 1))
+    if backend.zero_copy:
+        mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
+        event.wait()
+        del mapped
+    else:
+        cl.enqueue_copy(queue, out[a:b], dst)
+    queue.finish()
