@@ -261,20 +261,19 @@ def sample_pixel(img: wp.array3d(dtype=Any), s: wp.vec2, order: int, mode: int, 
     return v
 
 
-@wp.kernel
-def warp_antialias(
+@wp.func
+def pixel_antialias(
     blk: wp.array(dtype=wp.vec4),
     img: wp.array3d(dtype=Any),
     out: wp.array3d(dtype=Any),
+    y: int,
+    x: int,
     order: int,
     mode: int,
     cval: wp.vec4,
     top: float,
-    row0: int,
 ):
-    """_antialias.sample_antialiased for output pixel (x, y + row0)."""
-    y, x = wp.tid()
-    y = y + row0
+    """_antialias.sample_antialiased for output pixel (x, y)."""
     s = source_position(blk, x, y)
     w, dz, dzb = block_wirtinger(blk, wp.vec2(float(x), float(y)))
     ex = dz + dzb
@@ -303,6 +302,23 @@ def warp_antialias(
                 acc = acc + cval
     for c in range(img.shape[2]):
         store(out, y, x, c, acc[c] * inv, top)
+
+
+@wp.kernel
+def warp_antialias(
+    blk: wp.array(dtype=wp.vec4),
+    img: wp.array3d(dtype=Any),
+    out: wp.array3d(dtype=Any),
+    order: int,
+    mode: int,
+    cval: wp.vec4,
+    top: float,
+    row0: int,
+):
+    """_antialias.sample_antialiased for output pixel (x, y + row0)."""
+    y, x = wp.tid()
+    y = y + row0
+    pixel_antialias(blk, img, out, y, x, order, mode, cval, top)
 
 
 for _dtype in (wp.uint8, wp.uint16, wp.float32):

@@ -368,19 +368,18 @@ def store_cval(out: wp.array3d(dtype=Any), y: int, x: int, cval: wp.vec4, top: f
         store(out, y, x, c, cval[c], top)
 
 
-@wp.kernel
-def warp_nearest(
+@wp.func
+def pixel_nearest(
     blk: wp.array(dtype=wp.vec4),
     img: wp.array3d(dtype=Any),
     out: wp.array3d(dtype=Any),
+    y: int,
+    x: int,
     mode: int,
     cval: wp.vec4,
     top: float,
-    row0: int,
 ):
     """Order 0: the pixel at floor(x + 0.5), floor(y + 0.5)."""
-    y, x = wp.tid()
-    y = y + row0
     s = source_position(blk, x, y)
     if not in_range(s):
         store_cval(out, y, x, cval, top)
@@ -397,7 +396,7 @@ def warp_nearest(
 
 
 @wp.kernel
-def warp_linear(
+def warp_nearest(
     blk: wp.array(dtype=wp.vec4),
     img: wp.array3d(dtype=Any),
     out: wp.array3d(dtype=Any),
@@ -406,9 +405,24 @@ def warp_linear(
     top: float,
     row0: int,
 ):
-    """Order 1: bilinear over the four surrounding pixels, weights in software."""
+    """Order 0: the pixel at floor(x + 0.5), floor(y + 0.5)."""
     y, x = wp.tid()
     y = y + row0
+    pixel_nearest(blk, img, out, y, x, mode, cval, top)
+
+
+@wp.func
+def pixel_linear(
+    blk: wp.array(dtype=wp.vec4),
+    img: wp.array3d(dtype=Any),
+    out: wp.array3d(dtype=Any),
+    y: int,
+    x: int,
+    mode: int,
+    cval: wp.vec4,
+    top: float,
+):
+    """Order 1: bilinear over the four surrounding pixels, weights in software."""
     s = source_position(blk, x, y)
     if not in_range(s):
         store_cval(out, y, x, cval, top)
@@ -442,7 +456,7 @@ def warp_linear(
 
 
 @wp.kernel
-def warp_cubic(
+def warp_linear(
     blk: wp.array(dtype=wp.vec4),
     img: wp.array3d(dtype=Any),
     out: wp.array3d(dtype=Any),
@@ -451,9 +465,24 @@ def warp_cubic(
     top: float,
     row0: int,
 ):
-    """Order 3: Keys' cubic convolution over 4×4 pixels."""
+    """Order 1: bilinear over the four surrounding pixels, weights in software."""
     y, x = wp.tid()
     y = y + row0
+    pixel_linear(blk, img, out, y, x, mode, cval, top)
+
+
+@wp.func
+def pixel_cubic(
+    blk: wp.array(dtype=wp.vec4),
+    img: wp.array3d(dtype=Any),
+    out: wp.array3d(dtype=Any),
+    y: int,
+    x: int,
+    mode: int,
+    cval: wp.vec4,
+    top: float,
+):
+    """Order 3: Keys' cubic convolution over 4×4 pixels."""
     s = source_position(blk, x, y)
     if not in_range(s):
         store_cval(out, y, x, cval, top)
@@ -490,6 +519,22 @@ def warp_cubic(
                 acc = acc + wx[i] * tap(float(img[rows[j], cols[i], c]), cv, ok)
             v = v + wy[j] * acc
         store(out, y, x, c, v, top)
+
+
+@wp.kernel
+def warp_cubic(
+    blk: wp.array(dtype=wp.vec4),
+    img: wp.array3d(dtype=Any),
+    out: wp.array3d(dtype=Any),
+    mode: int,
+    cval: wp.vec4,
+    top: float,
+    row0: int,
+):
+    """Order 3: Keys' cubic convolution over 4×4 pixels."""
+    y, x = wp.tid()
+    y = y + row0
+    pixel_cubic(blk, img, out, y, x, mode, cval, top)
 
 
 #: The image kernels by interpolation order.

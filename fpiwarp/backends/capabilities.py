@@ -70,7 +70,7 @@ NUMPY = Capabilities(batches=True, thread_safe=True, antialias=True)
 OPENCL = Capabilities(
     max_side=MAX_DEVICE_SIDE, max_points=MAX_OPENCL_POINTS, max_stages=MAX_STAGES, antialias=True, batches=True
 )
-WARP = Capabilities(max_side=MAX_DEVICE_SIDE, max_stages=MAX_STAGES, antialias=True)
+WARP = Capabilities(max_side=MAX_DEVICE_SIDE, max_stages=MAX_STAGES, antialias=True, batches=True)
 GL = Capabilities(
     max_side=MAX_DEVICE_SIDE,
     max_stages=MAX_STAGES,

@@ -181,6 +181,7 @@ class Backend:
         self._jobs = JobCache()  # prepared jobs of plain warp_image calls
         self.block_kind = None  # what the kernels specialize on, of the block uploaded last
         self._aa_loaded = False  # the antialiased kernels' module, loaded on first use
+        self._batch_runner = None  # the batch kernels, loaded on first use
 
     def __repr__(self):
         return f"<fpiwarp warp backend on {self.device}, {self.threads} thread(s)>"
@@ -308,6 +309,33 @@ class Backend:
         """``transform`` prepared for many images (:class:`~.warp_prepared.BoundMap`):
         its block packed and uploaded once."""
         return BoundMap(self, transform)
+
+    def batches(self):
+        """The :class:`~fpiwarp.backends.warp_batches.BatchRunner` of this
+        backend; its kernels are loaded on first use."""
+        from fpiwarp.kernels import warp_batch  # noqa: PLC0415 - compiled only when asked for
+
+        from .warp_batches import BatchRunner  # noqa: PLC0415
+
+        with self._lock:
+            if self._batch_runner is None:
+                self._wp.load_module(warp_batch, device=self.device)
+                self._batch_runner = BatchRunner(self._wp, self.device, self._on_cpu, self._launch, warp_batch)
+        return self._batch_runner
+
+    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False):
+        """A validated (N, H, W, C) stack warped by one map or one map per
+        image in one launch (see :mod:`fpiwarp.backends.warp_batches`)."""
+        runner = self.batches()
+        with self._lock:
+            return runner.warp_batch(stack, transforms, output_shape, order=order, mode=mode, cval=cval,
+                                     antialias=antialias)
+
+    def map_points_batch(self, transforms, points):
+        """float64 (N, P, 2) point sets mapped by one map or one map each, in one launch."""
+        runner = self.batches()
+        with self._lock:
+            return runner.map_points_batch(transforms, points)
 
     def antialias_kernels(self):
         """The module of antialiased kernels, loaded on first use."""
