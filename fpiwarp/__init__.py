@@ -32,6 +32,7 @@ from ._transform import Compound, Transform
 from ._warp import map_points, warp_image
 from .backends import available_backends, backend_capabilities, backend_status
 from .batch import warp_batch, warp_images
+from .batch_points import map_points_batch
 from .io import read_image, write_image
 from .positions import source_positions
 from .spec import load_spec
@@ -68,6 +69,7 @@ __all__ = [
     "backend_status",
     "load_spec",
     "map_points",
+    "map_points_batch",
     "read_image",
     "source_positions",
     "warp_batch",

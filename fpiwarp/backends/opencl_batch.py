@@ -81,11 +81,16 @@ def chunk_ranges(n, item_bytes, limit):
     return [(a, min(n, a + per)) for a in range(0, n, per)]
 
 
+def constant_bytes(backend):
+    """Bytes of ``__constant`` memory one launch's blocks may take."""
+    return backend.device.max_constant_buffer_size
+
+
 def _launches(backend, groups, a, b):
     """(kind options, block rows, blocks, chunk-relative image indices) of
     the launches for images [a, b): each kind's images in the chunk, split
     so that a launch's blocks fit the device's constant memory."""
-    cap = backend.device.max_constant_buffer_size
+    cap = constant_bytes(backend)
     for kind, rows, blocks, images in groups:
         keep = (images >= a) & (images < b)
         if not keep.any():
