@@ -102,9 +102,11 @@ def test_opencl_groups_maps_by_kind():
     from fpiwarp.backends import opencl_batch
 
     maps = [make_map(kind, k, 9, 9) for k, kind in enumerate(["fpi", "tps", "shift", "compound", "tps"])]
-    groups = opencl_batch.block_groups(maps, len(maps))
+    from fpiwarp.backends.opencl_backend import kind_options
+
+    groups = opencl_batch.block_groups(maps, len(maps), kind_options)
     assert sorted(sorted(g[3].tolist()) for g in groups) == [[0, 2], [1, 4], [3]]
-    one = opencl_batch.block_groups(maps[:1], 6)
+    one = opencl_batch.block_groups(maps[:1], 6, kind_options)
     assert len(one) == 1 and one[0][1] == 0 and one[0][3].tolist() == list(range(6))
 
 

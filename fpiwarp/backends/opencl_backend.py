@@ -275,6 +275,11 @@ class Backend:
             self._read_back(dst, out)
         return out.astype(np.float64, copy=False).reshape(shape)
 
+    #: Bytes allocated past a source image (see IMAGE_SLACK).
+    image_slack = IMAGE_SLACK
+    #: Build options naming a kind of map (see :func:`kind_options`).
+    kind_options = staticmethod(kind_options)
+
     @property
     def point_options(self):
         """Build options of map_points' point type (double where the device has fp64)."""

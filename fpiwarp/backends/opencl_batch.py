@@ -38,7 +38,6 @@ chunk i - 1 overlap the kernels of chunk i (``transfer="pipelined"``;
 import numpy as np
 
 from ..block import describe
-from .opencl_backend import IMAGE_SLACK, NARROW_LOCAL_X, kind_options, sampling_options
 
 #: Bytes of input plus output one chunk of a batch holds at most (each
 #: chunk holds at least one image).
@@ -56,10 +55,11 @@ def _cl():
     return cl
 
 
-def block_groups(transforms, n):
+def block_groups(transforms, n, kind_options):
     """Stacked float32 blocks by kind: a list of (kind options, block rows
     (0: one block shared by all images), blocks (k, rows, 4), image
-    indices (k,) int32). One map gives one group of all ``n`` images.
+    indices (k,) int32), the kind named by ``kind_options`` (the
+    backend's). One map gives one group of all ``n`` images.
     A block no kernel knows raises ValueError (:func:`describe`) first."""
     blocks = [np.ascontiguousarray(t.params(), dtype=np.float32) for t in transforms]
     kinds = [kind_options(describe(b)) for b in blocks]
@@ -106,12 +106,6 @@ def _small_buffer(cl, context, array):
     return cl.Buffer(context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(array))
 
 
-def _local_x(backend, ow):
-    """warp_image's work-group width for rows of ``ow`` pixels (as DeviceWarp chooses it)."""
-    fits = [x for x in NARROW_LOCAL_X if ow <= x < backend.local_x and x % backend.lanes == 0]
-    return fits[0] if fits else backend.local_x
-
-
 def default_transfer(backend):
     """"zero_copy" on a device sharing host memory, else "pipelined"."""
     return "zero_copy" if backend.zero_copy else "pipelined"
@@ -125,15 +119,11 @@ def warp_batch(backend, stack, transforms, output_shape, *, order, mode, cval, a
     n, h, w, c = stack.shape
     oh, ow = output_shape
     out = np.empty((n, oh, ow, c), dtype=stack.dtype)
-    groups = block_groups([t.inverse for t in transforms], n)
+    groups = block_groups([t.inverse for t in transforms], n, backend.kind_options)
     transfer = transfer or default_transfer(backend)
     if transfer not in TRANSFERS:
         raise ValueError(f"transfer must be one of {TRANSFERS}, got {transfer!r}")
-    local_x = _local_x(backend, ow)
-    sampling = sampling_options(stack.dtype, c, order, mode) + (f"-DFW_LOCAL_X={local_x}", f"-DFW_VN={backend.lanes}")
-    name = "warp_image_aa" if antialias else "warp_image"
-    if antialias:
-        sampling += ("-DFW_AA=1",)
+    name, sampling, local_x = backend.image_program(stack.dtype, c, order, mode, ow, antialias)
     cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
     item_in, item_out = stack[0].nbytes, out[0].nbytes
     cols = -(-ow // local_x) * local_x
@@ -165,7 +155,7 @@ def _run_zero_copy(cl, backend, stack, out, chunks, launch):
     caller's output in place (USE_HOST_PTR), made visible by a map."""
     mf, queue = cl.mem_flags, backend.queue
     per = chunks[0][1] - chunks[0][0]
-    src = cl.Buffer(backend.context, mf.READ_ONLY, per * stack[0].nbytes + IMAGE_SLACK)
+    src = cl.Buffer(backend.context, mf.READ_ONLY, per * stack[0].nbytes + backend.image_slack)
     for a, b in chunks:
         cl.enqueue_copy(queue, src, stack[a:b])
         dst = cl.Buffer(backend.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
@@ -182,7 +172,7 @@ def _run_copies(cl, backend, stack, out, chunks, launch, pipelined):
     the backend's queue one after the other."""
     mf, ctx = cl.mem_flags, backend.context
     per = chunks[0][1] - chunks[0][0]
-    slots = [(cl.Buffer(ctx, mf.READ_ONLY, per * stack[0].nbytes + IMAGE_SLACK),
+    slots = [(cl.Buffer(ctx, mf.READ_ONLY, per * stack[0].nbytes + backend.image_slack),
               cl.Buffer(ctx, mf.WRITE_ONLY, per * out[0].nbytes)) for _ in range(2 if pipelined else 1)]
     up, down = (cl.CommandQueue(ctx), cl.CommandQueue(ctx)) if pipelined else (backend.queue, backend.queue)
     pending = [([], []) for _ in slots]  # per slot: (its last kernels, its last download)
@@ -210,7 +200,7 @@ def map_points_batch(backend, transforms, points):
     out = np.empty_like(pts)
     if p == 0 or n == 0:
         return out.astype(np.float64)
-    groups = block_groups(transforms, n)
+    groups = block_groups(transforms, n, backend.kind_options)
     options = backend.point_options + (f"-DFW_LOCAL_X={backend.local_x}", "-DFW_BATCH=1")
     limit = min(CHUNK_BYTES, backend.device.max_mem_alloc_size)
     for a, b in chunk_ranges(n, pts[0].nbytes, limit):
