@@ -1,4 +1,4 @@
-"""Run the benchmarks: ``python3 -m benchmarks [--quick] [--out DIR] [--only speed|quality|antialias|arrays]``.
+"""Run the benchmarks: ``python3 -m benchmarks [--quick] [--out DIR] [--only speed|quality|antialias|arrays|batch]``.
 
 Writes into DIR (default: benchmarks/results next to this file), with
 stable names so a rerun replaces the previous results:
@@ -10,7 +10,9 @@ stable names so a rerun replaces the previous results:
 - antialias.md, antialias.json, antialias_crops.png: antialiasing's PSNR
   against a supersampled reference beside the peers, and its cost;
 - arrays.md, arrays.json: warp_image end to end from numpy and from
-  device-resident arrays (pyopencl, Warp, JAX, textures) vs the kernel alone.
+  device-resident arrays (pyopencl, Warp, JAX, textures) vs the kernel alone;
+- batch.md, batch.json: stacks in one warp_batch call against the
+  per-image loop, per backend (:mod:`benchmarks.batch_stacks`).
 
 ``--quick`` is a smoke run of a few seconds (small sizes, coarse grids)
 that exercises every code path; its numbers mean little.
@@ -23,7 +25,7 @@ import sys
 import time
 from pathlib import Path
 
-from . import antialias, arrays, machine, quality, speed
+from . import antialias, arrays, batch_stacks, machine, quality, speed
 
 DEFAULT_OUT = Path(__file__).resolve().parent / "results"
 
@@ -49,7 +51,8 @@ def parse_args(argv):
     parser.add_argument(
         "--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT.name}/ beside this file)"
     )
-    parser.add_argument("--only", choices=("speed", "quality", "antialias", "arrays"), help="run one part only")
+    parser.add_argument("--only", choices=("speed", "quality", "antialias", "arrays", "batch"),
+                        help="run one part only")
     parser.add_argument(
         "--backends",
         type=lambda s: [b for b in s.split(",") if b],
@@ -119,6 +122,13 @@ def main(argv=None):
         info["arrays_wall_s"] = round(time.perf_counter() - t0, 1)
         write_text(out / "arrays.md", arrays.markdown(rows, machine_md))
         write_json(out / "arrays.json", {"machine": info, "results": rows})
+
+    if args.only in (None, "batch"):
+        t0 = time.perf_counter()
+        result = batch_stacks.run(quick=args.quick, backends=args.backends, log=log)
+        info["batch_wall_s"] = round(time.perf_counter() - t0, 1)
+        write_text(out / "batch.md", batch_stacks.markdown(result, machine_md))
+        write_json(out / "batch.json", {"machine": info, **result})
 
     try:
         info["load_average_at_end"] = [round(v, 2) for v in os.getloadavg()]
