@@ -11,7 +11,11 @@ The map is solved once and bound to the backend (``bind``): the numpy
 backend computes the source position of every output pixel once per
 output size and shares it among the images of that size. A backend whose
 capabilities say ``batches`` warps a whole stack in one call
-(``warp_batch``); the others get one ``warp_image`` call per image.
+(``warp_batch``): "numpy" (one map: one pass for all images), "opencl"
+(one kernel launch per kind of map, :mod:`fpiwarp.backends.opencl_batch`)
+and "warp" (one launch, :mod:`fpiwarp.backends.warp_batches`); the others
+("gl") get one ``warp_image`` call per image. Either way the result
+equals the loop of :func:`fpiwarp.warp_image` bit for bit.
 """
 
 import os
@@ -124,9 +128,11 @@ def warp_batch(
     Returns
     -------
     ndarray, shape (N, rows, cols) or (N, rows, cols, C)
-        The warped stack, of the input's dtype. On a backend that batches
-        (numpy: one map is evaluated once and all N images sampled in one
-        pass) the stack goes in one call.
+        The warped stack, of the input's dtype, equal bit for bit to the
+        loop of :func:`fpiwarp.warp_image` over the images. On a backend
+        that batches the stack goes in one call (numpy: one map evaluated
+        once for all N images; opencl: one kernel launch per kind of map;
+        warp: one launch), in launches of bounded size for large stacks.
 
     Raises
     ------
