@@ -35,6 +35,8 @@ chunk i - 1 overlap the kernels of chunk i (``transfer="pipelined"``;
 ``"serial"`` does the same on one queue, for comparison).
 """
 
+import weakref
+
 import numpy as np
 
 from ..block import describe
@@ -47,6 +49,23 @@ CHUNK_BYTES = 256 << 20
 PIPELINE_CHUNK_BYTES = 32 << 20
 #: The ways a batch may reach the device (see the module docstring).
 TRANSFERS = ("zero_copy", "pipelined", "serial")
+
+
+_KEPT = weakref.WeakKeyDictionary()  # backend -> {role: Buffer}: device buffers kept across batches
+
+
+def kept_buffer(backend, role, nbytes, flags):
+    """A device buffer of at least ``nbytes`` for ``role``, kept across
+    calls on ``backend`` (a larger need replaces it), as the backend
+    keeps its own: allocating and first touching a chunk's buffer costs
+    about as much as copying into it."""
+    cl = _cl()
+    kept = _KEPT.setdefault(backend, {})
+    buf = kept.get(role)
+    if buf is None or buf.size < nbytes:
+        kept.pop(role, None)
+        buf = kept[role] = cl.Buffer(backend.context, flags, max(nbytes, 4))
+    return buf
 
 
 def _cl():
@@ -155,7 +174,7 @@ def _run_zero_copy(cl, backend, stack, out, chunks, launch):
     caller's output in place (USE_HOST_PTR), made visible by a map."""
     mf, queue = cl.mem_flags, backend.queue
     per = chunks[0][1] - chunks[0][0]
-    src = cl.Buffer(backend.context, mf.READ_ONLY, per * stack[0].nbytes + backend.image_slack)
+    src = kept_buffer(backend, "in0", per * stack[0].nbytes + backend.image_slack, mf.READ_ONLY)
     for a, b in chunks:
         cl.enqueue_copy(queue, src, stack[a:b])
         dst = cl.Buffer(backend.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
@@ -172,8 +191,10 @@ def _run_copies(cl, backend, stack, out, chunks, launch, pipelined):
     the backend's queue one after the other."""
     mf, ctx = cl.mem_flags, backend.context
     per = chunks[0][1] - chunks[0][0]
-    slots = [(cl.Buffer(ctx, mf.READ_ONLY, per * stack[0].nbytes + backend.image_slack),
-              cl.Buffer(ctx, mf.WRITE_ONLY, per * out[0].nbytes)) for _ in range(2 if pipelined else 1)]
+    in_bytes, out_bytes = per * stack[0].nbytes + backend.image_slack, per * out[0].nbytes
+    slots = [(kept_buffer(backend, f"in{k}", in_bytes, mf.READ_ONLY), kept_buffer(backend, f"out{k}", out_bytes,
+                                                                                  mf.WRITE_ONLY))
+             for k in range(2 if pipelined else 1)]
     up, down = (cl.CommandQueue(ctx), cl.CommandQueue(ctx)) if pipelined else (backend.queue, backend.queue)
     pending = [([], []) for _ in slots]  # per slot: (its last kernels, its last download)
     for i, (a, b) in enumerate(chunks):
