@@ -32,7 +32,15 @@ up to :data:`CHUNK_BYTES`. On other devices (a GPU) the batch goes in
 chunks of :data:`PIPELINE_CHUNK_BYTES` through two sets of device buffers
 and three queues, so that the upload of chunk i + 1 and the download of
 chunk i - 1 overlap the kernels of chunk i (``transfer="pipelined"``;
-``"serial"`` does the same on one queue, for comparison).
+``"serial"`` does the same on one queue, for comparison). No pinned
+staging buffers yet: on a GPU the driver stages pageable numpy memory.
+
+Device arrays
+-------------
+:class:`BatchLaunch` enqueues a batch's kernels on any device buffers
+(the source from image a on, the output likewise), so arrays already on
+the device (e.g. ``pyopencl.array.Array.data``) can be warped without
+a host copy; :func:`warp_batch` is its host-array front end.
 """
 
 import weakref
@@ -130,42 +138,61 @@ def default_transfer(backend):
     return "zero_copy" if backend.zero_copy else "pipelined"
 
 
+class BatchLaunch:
+    """The kernels of one batch, ready to enqueue on device buffers.
+
+    ``stack_shape`` (N, H, W, C) and ``dtype`` describe the images,
+    ``transforms`` the user's maps (one or N; the kernels read their
+    inverses). :meth:`enqueue` runs images [a, b) from any device buffer
+    holding them from image a on (``src``, with ``backend.image_slack``
+    bytes to spare past the last) into one for their outputs (``dst``):
+    host arrays, kept buffers or a caller's device arrays alike.
+    """
+
+    def __init__(self, backend, stack_shape, dtype, transforms, output_shape, *, order, mode, cval,
+                 antialias=False):
+        cl = self.cl = _cl()
+        n, self.h, self.w, c = stack_shape
+        self.backend, (self.oh, self.ow) = backend, output_shape
+        self.groups = block_groups([t.inverse for t in transforms], n, backend.kind_options)
+        self.name, sampling, self.local_x = backend.image_program(dtype, c, order, mode, self.ow, antialias)
+        self.options = sampling + ("-DFW_BATCH=1",)
+        self.cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
+        self.cols = -(-self.ow // self.local_x) * self.local_x
+        self.keep = []  # the launches' block and index buffers, alive as long as this object
+
+    def enqueue(self, queue, src, dst, a, b, wait_for=None):
+        """Enqueue the launches of images [a, b) (one per kind, and per
+        constant-memory load of blocks) after ``wait_for``; their events."""
+        cl, be, events = self.cl, self.backend, []
+        sizes = (np.int32(self.w), np.int32(self.h), dst, np.int32(self.ow), np.int32(self.oh), self.cval4)
+        for kind, rows, blocks, which in _launches(be, self.groups, a, b):
+            kern = be.kernel(self.name, kind + self.options)
+            self.keep.append((_small_buffer(cl, be.context, blocks), _small_buffer(cl, be.context, which)))
+            kern.set_args(self.keep[-1][0], src, *sizes, self.keep[-1][1], np.int32(rows))
+            events.append(cl.enqueue_nd_range_kernel(queue, kern, (self.cols, self.oh, len(which)),
+                                                     (self.local_x, 1, 1), wait_for=wait_for))
+        return events
+
+
 def warp_batch(backend, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):
     """Warp a validated (N, H, W, C) stack by one map or one per image
     (``transforms``: the user's maps; the kernels read their inverses);
     (N, rows, cols, C) of the stack's dtype. Call under the backend's lock."""
     cl = _cl()
-    n, h, w, c = stack.shape
-    oh, ow = output_shape
-    out = np.empty((n, oh, ow, c), dtype=stack.dtype)
-    groups = block_groups([t.inverse for t in transforms], n, backend.kind_options)
+    n = stack.shape[0]
+    out = np.empty((n, *output_shape, stack.shape[3]), dtype=stack.dtype)
     transfer = transfer or default_transfer(backend)
     if transfer not in TRANSFERS:
         raise ValueError(f"transfer must be one of {TRANSFERS}, got {transfer!r}")
-    name, sampling, local_x = backend.image_program(stack.dtype, c, order, mode, ow, antialias)
-    cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
-    item_in, item_out = stack[0].nbytes, out[0].nbytes
-    cols = -(-ow // local_x) * local_x
-
-    keep = []  # the launches' block and index buffers, alive until the end
-
-    def launch(queue, src, dst, a, b, wait_for):
-        events = []
-        for kind, rows, blocks, which in _launches(backend, groups, a, b):
-            kern = backend.kernel(name, kind + sampling + ("-DFW_BATCH=1",))
-            keep.append((_small_buffer(cl, backend.context, blocks), _small_buffer(cl, backend.context, which)))
-            kern.set_args(keep[-1][0], src, np.int32(w), np.int32(h), dst, np.int32(ow), np.int32(oh), cval4,
-                          keep[-1][1], np.int32(rows))
-            events.append(cl.enqueue_nd_range_kernel(queue, kern, (cols, oh, len(which)), (local_x, 1, 1),
-                                                     wait_for=wait_for))
-        return events
-
+    job = BatchLaunch(backend, stack.shape, stack.dtype, transforms, output_shape, order=order, mode=mode, cval=cval,
+                      antialias=antialias)
     limit = min(CHUNK_BYTES if transfer == "zero_copy" else PIPELINE_CHUNK_BYTES, backend.device.max_mem_alloc_size)
-    chunks = chunk_ranges(n, item_in + item_out, limit)
+    chunks = chunk_ranges(n, stack[0].nbytes + out[0].nbytes, limit)
     if transfer == "zero_copy":
-        _run_zero_copy(cl, backend, stack, out, chunks, launch)
+        _run_zero_copy(cl, backend, stack, out, chunks, job.enqueue)
     else:
-        _run_copies(cl, backend, stack, out, chunks, launch, transfer == "pipelined")
+        _run_copies(cl, backend, stack, out, chunks, job.enqueue, transfer == "pipelined")
     return out
 
 
