@@ -150,3 +150,25 @@ def test_map_points_batch_refuses_bad_batches():
         fpiwarp.map_points_batch(shift, np.zeros(2))
     with pytest.raises(fpiwarp.ArgumentTypeError):
         fpiwarp.map_points_batch([shift, "not a map"], np.zeros((2, 1, 2)))
+
+
+def test_batch_keeps_the_per_image_limits(opencl_backend):
+    """SizeLimitError as warp_image gives it, for the one map of the batch
+    that exceeds the backend's stages."""
+    from fpiwarp.params import MAX_STAGES
+
+    fpi = make_map("fpi", 0, 10, 10)
+    deep = fpi
+    for _ in range(MAX_STAGES):
+        deep = deep @ fpi
+    with pytest.raises(fpiwarp.SizeLimitError, match="stages"):
+        fpiwarp.warp_image(np.zeros((4, 4), np.uint8), deep, backend="opencl")
+    with pytest.raises(fpiwarp.SizeLimitError, match="stages"):
+        fpiwarp.warp_batch(np.zeros((2, 4, 4), np.uint8), [fpi, deep], backend="opencl")
+
+
+def test_opencl_refuses_an_unknown_transfer(opencl_backend):
+    backend = get_backend("opencl")
+    with pytest.raises(ValueError, match="transfer"):
+        backend.warp_batch(np.zeros((1, 2, 2, 1), np.uint8), [make_map("fpi", 0, 8, 8)], (2, 2), order=1,
+                           mode="edge", cval=np.zeros(1), transfer="teleport")
