@@ -14,7 +14,8 @@ Run alone with ``python -m benchmarks --only batch`` (writes batch.md and
 batch.json). On a machine with CUDA or an OpenCL GPU the backends pick the
 GPU by themselves (Warp: ``cuda:0``; OpenCL: GPUs first), so the same
 command measures them there. Numbers on a shared machine are noisy:
-compare ratios within one run.
+compare ratios within one run (loop and batch are timed in turn, the
+fastest of several calls each).
 """
 
 import time
@@ -26,7 +27,7 @@ from fpiwarp.backends import get_backend
 
 from .speed import test_image
 
-FULL = {"stack": (64, 512, 512), "frames": [(8, 1080, 1920), (4, 2160, 3840)], "repeats": 3}
+FULL = {"stack": (64, 512, 512), "frames": [(8, 1080, 1920), (4, 2160, 3840)], "repeats": 5}
 QUICK = {"stack": (8, 64, 64), "frames": [(2, 96, 128)], "repeats": 1}
 FRAME_BACKENDS = ("opencl", "warp", "gl")
 #: How each backend runs a batch of N different maps.
@@ -46,16 +47,20 @@ def maps_for(n, height, width, seed=0):
     return [fpiwarp.FPI(src, src + rng.uniform(-0.04, 0.04, (4, 2)) * [w, h]) for _ in range(n)]
 
 
-def best_of(fn, repeats):
-    """(seconds of the fastest of ``repeats`` calls after a warm-up, its result)."""
-    result = fn()
-    best = None
+def paired(fns, repeats):
+    """[(seconds of the fastest call, last result)] for each of ``fns``, after
+    a warm-up of each, called in turn ``repeats`` times: on a shared,
+    loaded machine interleaving keeps a burst of load from landing on one
+    of them only."""
+    results = [fn() for fn in fns]
+    best = [None] * len(fns)
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        result = fn()
-        dt = time.perf_counter() - t0
-        best = dt if best is None else min(best, dt)
-    return best, result
+        for i, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            results[i] = fn()
+            dt = time.perf_counter() - t0
+            best[i] = dt if best[i] is None else min(best[i], dt)
+    return list(zip(best, results, strict=True))
 
 
 def _loop(stack, maps, backend):
@@ -70,8 +75,9 @@ def run_maps(backends, sizes, log=print):
     maps = maps_for(n, h, w)
     rows = []
     for backend in backends:
-        loop_s, expected = best_of(lambda b=backend: _loop(stack, maps, b), sizes["repeats"])
-        batch_s, got = best_of(lambda b=backend: fpiwarp.warp_batch(stack, maps, backend=b), sizes["repeats"])
+        (loop_s, expected), (batch_s, got) = paired(
+            [lambda b=backend: _loop(stack, maps, b), lambda b=backend: fpiwarp.warp_batch(stack, maps, backend=b)],
+            sizes["repeats"])
         rows.append({"backend": backend, "n": n, "size": [h, w], "loop_s": loop_s, "batch_s": batch_s,
                      "speedup": loop_s / batch_s, "equal": bool(np.array_equal(got, expected))})
         log(f"batch {n}x{h}x{w} {backend}: loop {loop_s * 1e3:.0f} ms, batch {batch_s * 1e3:.0f} ms")
@@ -87,9 +93,9 @@ def run_frames(backends, sizes, log=print):
         stack = np.stack([np.roll(frame, 7 * i, axis=1) for i in range(n)])
         maps = maps_for(n, h, w, seed=3)
         for backend in backends:
-            loop_s, _ = best_of(lambda b=backend, s=stack, m=maps: _loop(s, m, b), sizes["repeats"])
-            batch_s, _ = best_of(lambda b=backend, s=stack, m=maps: fpiwarp.warp_batch(s, m, backend=b),
-                                 sizes["repeats"])
+            (loop_s, _), (batch_s, _) = paired(
+                [lambda b=backend, s=stack, m=maps: _loop(s, m, b),
+                 lambda b=backend, s=stack, m=maps: fpiwarp.warp_batch(s, m, backend=b)], sizes["repeats"])
             rows.append({"backend": backend, "n": n, "size": [h, w], "loop_fps": n / loop_s,
                          "batch_fps": n / batch_s})
             log(f"frames {n}x{h}x{w} {backend}: loop {n / loop_s:.1f} fps, batch {n / batch_s:.1f} fps")
@@ -104,12 +110,11 @@ def run_transfers(sizes, log=print):
     maps = maps_for(n, h, w)
     backend = get_backend("opencl")
     cval = np.zeros(3)
+    transfers = ("zero_copy", "serial", "pipelined")
+    calls = [lambda t=t: backend.warp_batch(stack, maps, (h, w), order=1, mode="constant", cval=cval, transfer=t)
+             for t in transfers]
     rows = []
-    for transfer in ("zero_copy", "serial", "pipelined"):
-        def call(t=transfer):
-            return backend.warp_batch(stack, maps, (h, w), order=1, mode="constant", cval=cval, transfer=t)
-
-        seconds, _ = best_of(call, sizes["repeats"])
+    for transfer, (seconds, _) in zip(transfers, paired(calls, sizes["repeats"]), strict=True):
         rows.append({"transfer": transfer, "seconds": seconds, "bytes": 2 * stack.nbytes})
         log(f"opencl transfer {transfer}: {seconds * 1e3:.0f} ms")
     return rows
