@@ -243,6 +243,8 @@ def test_quick_run_writes_every_output(quick_run):
         "antialias.md",
         "antialias.json",
         "antialias_crops.png",
+        "batch.md",
+        "batch.json",
     }
     assert expected <= names
     assert not any(n.endswith(".tmp") for n in names)
@@ -300,3 +302,12 @@ def test_quick_run_antialias_section_is_well_formed(quick_run):
             assert smooth > plain + 3
     assert {r["backend"] for r in data["cost"]} >= {"numpy"}
     assert "## Cost" in (quick_run / "antialias.md").read_text()
+
+
+def test_quick_run_batch_section_is_well_formed(quick_run):
+    """Every backend's batch equals its loop; times and ratios are positive."""
+    data = json.loads((quick_run / "batch.json").read_text())
+    assert data["maps"] and all(r["equal"] for r in data["maps"])
+    assert all(r["loop_s"] > 0 and r["batch_s"] > 0 and r["speedup"] > 0 for r in data["maps"])
+    assert all(r["loop_fps"] > 0 and r["batch_fps"] > 0 for r in data["frames"])
+    assert "batch == loop" in (quick_run / "batch.md").read_text()
