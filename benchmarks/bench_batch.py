@@ -8,6 +8,10 @@ the loop users write today: Pillow open, numpy maps of the inverse, then
 baseline computes the maps once outside the loop. Each method writes every
 image; one warm-up image per method is excluded (kernel compiles, caches).
 
+Stacks already in memory (``warp_batch`` in one launch against the loop)
+are measured by :mod:`benchmarks.batch_stacks` (``python -m benchmarks
+--only batch``).
+
 Run: ``python benchmarks/bench_batch.py [--images N] [--jobs J] [--backends numpy,gl]``.
 Needs Pillow and opencv-python-headless. Numbers on a shared machine are
 noisy: compare the ratios within one run.
