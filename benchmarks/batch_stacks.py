@@ -129,7 +129,6 @@ def run(quick=False, backends=None, log=print):
     devices = [b for b in backends if b in FRAME_BACKENDS]
     result["frames"] = run_frames(devices, sizes, log)
     result["transfers"] = run_transfers(sizes, log) if "opencl" in backends else []
-    result["devices"] = {b: repr(get_backend(b)) for b in backends}
     return result
 
 
@@ -155,5 +154,5 @@ def markdown(result, machine_md=""):
         for r in result["transfers"]:
             rate = r["bytes"] / r["seconds"] / 1e9
             lines.append(f"| {r['transfer']} | {r['seconds'] * 1e3:.0f} ms | {rate:.2f} GB/s |")
-    lines += ["", "Devices: " + "; ".join(f"{k}: {v}" for k, v in result["devices"].items()), ""]
+    lines.append("")
     return "\n".join(lines)
