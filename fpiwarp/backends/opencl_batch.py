@@ -95,10 +95,18 @@ def block_groups(transforms, n, kind_options):
     groups = {}
     for i, kind in enumerate(kinds):
         groups.setdefault(kind, []).append(i)
-    return [
-        (kind, blocks[idx[0]].shape[0], np.stack([blocks[i] for i in idx]), np.asarray(idx, dtype=np.int32))
-        for kind, idx in groups.items()
-    ]
+    return [(kind, *_stacked([blocks[i] for i in idx]), np.asarray(idx, dtype=np.int32))
+            for kind, idx in groups.items()]
+
+
+def _stacked(blocks):
+    """(rows, (k, rows, 4) float32): ``blocks`` padded with zero rows to the
+    longest (rows past a block's stages are never read)."""
+    rows = max(b.shape[0] for b in blocks)
+    out = np.zeros((len(blocks), rows, 4), dtype=np.float32)
+    for i, block in enumerate(blocks):
+        out[i, : block.shape[0]] = block
+    return rows, out
 
 
 def chunk_ranges(n, item_bytes, limit):
