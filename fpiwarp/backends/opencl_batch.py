@@ -163,8 +163,8 @@ class BatchLaunch:
         n, self.h, self.w, c = stack_shape
         self.backend, (self.oh, self.ow) = backend, output_shape
         self.groups = block_groups([t.inverse for t in transforms], n, backend.kind_options)
-        self.name, sampling, self.local_x = backend.image_program(dtype, c, order, mode, self.ow, antialias)
-        self.options = sampling + ("-DFW_BATCH=1",)
+        self.sampling = (dtype, c, order, mode, self.ow, antialias)
+        self.local_x = backend.image_program(*self.sampling, ())[2]
         self.cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self.cols = -(-self.ow // self.local_x) * self.local_x
         self.keep = []  # the launches' block and index buffers, alive as long as this object
@@ -175,7 +175,8 @@ class BatchLaunch:
         cl, be, events = self.cl, self.backend, []
         sizes = (np.int32(self.w), np.int32(self.h), dst, np.int32(self.ow), np.int32(self.oh), self.cval4)
         for kind, rows, blocks, which in _launches(be, self.groups, a, b):
-            kern = be.kernel(self.name, kind + self.options)
+            name, options, _ = be.image_program(*self.sampling, kind)
+            kern = be.kernel(name, (*options, "-DFW_BATCH=1"))
             self.keep.append((_small_buffer(cl, be.context, blocks), _small_buffer(cl, be.context, which)))
             kern.set_args(self.keep[-1][0], src, *sizes, self.keep[-1][1], np.int32(rows))
             events.append(cl.enqueue_nd_range_kernel(queue, kern, (self.cols, self.oh, len(which)),
