@@ -34,7 +34,7 @@ FRAME_BACKENDS = ("opencl", "warp", "gl")
 HOW = {
     "numpy": "one call, each image sampled in turn",
     "opencl": "one launch per kind of map",
-    "warp": "one launch",
+    "warp": "one launch (generic kernel; the loop runs per-kind ones)",
     "gl": "the per-image loop (no batched draw yet)",
 }
 
