@@ -112,7 +112,7 @@ class ConstrainedFPI(Transform):
         K, points spread along each constrained edge (ends included);
         the spline gets 4 K centers, so 2 <= K <= 16 (16: the block's 64).
         None (default): as many as the block holds as pairs (an edge point
-        and its offset copy in two rows, see :mod:`fpiwarp.block.layout`):
+        and its offset copy in two rows, see ``fpiwarp.block.layout``):
         16 for opposite edges, 15 for adjacent ones (their free corner and
         the shared corner's second offset copy take a pair each). Adjacent
         edges with K = 16 are packed as plain terms, which float32

@@ -88,7 +88,7 @@ class ThinPlateSpline(Transform):
         self.l1, self.l2, self.l3 = (complex(v) for v in lam)
         #: None, or per center the index of the center it is the offset copy
         #: of (-1: none): then the block stores the centers as pairs
-        #: (:mod:`fpiwarp._tps_pairing`), which float32 evaluates exactly
+        #: (``fpiwarp._tps_pairing``), which float32 evaluates exactly
         self.partner = None
         if abs(abs(self.l1) - abs(self.l2)) <= 1e-14 * (abs(self.l1) + abs(self.l2)):
             raise ArgumentError("singular affine part of the thin-plate spline: |l1| == |l2|")

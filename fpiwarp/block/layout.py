@@ -35,14 +35,14 @@ row   contents
 The paired TPS cores (``CORE_TPS_PAIRS``, ``CORE_TPS_PAIRS_INVERSE``) read
 the same center rows two at a time: pair j is rows 12+2j and 13+2j,
 
-====  ==========================================================
-row   contents
-====  ==========================================================
-12+2j ``[c.re, c.im, W.re, W.im]``       the pair's first center c and
-                                          the summed weight W = b1 + b2
-13+2j ``[d.re, d.im, b2.re, b2.im]``     the offset d of its second center
-                                          c + d, and that center's weight
-====  ==========================================================
+=====  ==========================================================
+row    contents
+=====  ==========================================================
+12+2j  ``[c.re, c.im, W.re, W.im]``       the pair's first center c and
+                                           the summed weight W = b1 + b2
+13+2j  ``[d.re, d.im, b2.re, b2.im]``     the offset d of its second center
+                                           c + d, and that center's weight
+=====  ==========================================================
 
 (``n_centers`` counts rows: twice the pairs). A constrained FPI's spline
 has an edge point and its offset copy a distance δ apart with nearly
@@ -51,7 +51,7 @@ catastrophically. The pair's term
 ``W U(|p - c|) + b2 (U(|p - c - d|) - U(|p - c|))`` holds W (of order 1,
 summed in float64 on the host), d (full relative precision) and the
 difference of U computed without cancellation
-(:func:`fpiwarp.block.tps_pairs.pair_terms`). A center without a partner
+(``fpiwarp.block.tps_pairs.pair_terms``). A center without a partner
 is a pair with d = 0 and b2 = 0: its term is exactly the plain one.
 
 Evaluating one stage on a point z (:func:`fpiwarp.block.reference.evaluate`
