@@ -36,10 +36,11 @@ from numpy.typing import ArrayLike
 from ._constraint_fit import edge_similarity, fit_spline
 from ._errors import ArgumentTypeError, ConstraintError
 from ._exactness import check_corners
-from ._foldover import refuse_fold
+from ._foldover import inside_quad, refuse_fold
 from ._linear import RLinear
 from ._mobius import Mobius, centered_at_zero, mobius_product
 from ._quad import check_quad_pair, parallelogram_mobius
+from ._tps import ThinPlateSpline
 from ._transform import Transform, chain
 from .block import MAX_CENTERS, MobiusPart, Stage
 
@@ -242,9 +243,10 @@ class ConstrainedFPI(Transform):
         attrs = {k: v for k, v in self.__dict__.items() if k in _ATTRS}
         if "constraints" in self.__dict__:
             attrs["constraints"] = self.constraints[::-1]
-        return ConstrainedFPI._from_parts(
-            self._w, self._z, self.post.inverse, self.core.inverse, self.pre.inverse, **attrs
-        )
+        core = self.core.inverse
+        if isinstance(self.core, ThinPlateSpline):
+            core.region = SourceRegion(self._z, self._w, self.pre.inverse, self.post)
+        return ConstrainedFPI._from_parts(self._w, self._z, self.post.inverse, core, self.pre.inverse, **attrs)
 
     def _fuse_with(self, nxt):
         """A following Möbius map (or similarity) joins the post-Möbius:
@@ -273,6 +275,23 @@ class ConstrainedFPI(Transform):
             f"ConstrainedFPI(src={self.src.tolist()}, dst={self.dst.tolist()}, "
             f"edges={getattr(self, 'edges', None)})"
         )
+
+
+class SourceRegion:
+    """Where the spline's Newton inverse should land: inside src (z) for
+    targets inside dst (w); ``pre_inverse`` takes spline coordinates back
+    to src's, ``post`` the spline's values to dst's. The spline can fold
+    outside src and cover part of dst's image a second time."""
+
+    def __init__(self, z, w, pre_inverse, post):
+        self.z, self.w, self.pre_inverse, self.post = z, w, pre_inverse, post
+
+    def holds(self, x):
+        return inside_quad(self.z, self.pre_inverse.map_complex(x))
+
+    def wants(self, target):
+        with np.errstate(all="ignore"):
+            return inside_quad(self.w, self.post.map_complex(target))
 
 
 def as_mobius(t):

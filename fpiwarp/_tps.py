@@ -279,6 +279,12 @@ class InverseThinPlateSpline(Transform):
     scale``; points that do not get there come out NaN, i.e. "outside".
     """
 
+    #: Optional, set by ConstrainedFPI: an object whose ``wants(target)`` says
+    #: which targets have a preimage in the region and ``holds(x)`` which
+    #: points lie in it; an answer outside the region for a target that
+    #: wants one inside is solved again from grid seeds inside the region.
+    region = None
+
     def __init__(self, tps):
         self.tps = tps
         t = tps.map_complex(tps.centers)
@@ -308,6 +314,11 @@ class InverseThinPlateSpline(Transform):
             idx = np.flatnonzero(bad)
             x[idx], err[idx] = self._reseed(target[idx], tol[idx], x[idx], err[idx])
             bad = ~(err <= HOST_RTOL * size)
+        if self.region is not None:  # phi may not be one-to-one: prefer the region's preimage
+            idx = np.flatnonzero(~bad & self.region.wants(target))
+            idx = idx[~self.region.holds(x[idx])]
+            if idx.size:
+                x[idx], err[idx] = self._reseed(target[idx], tol[idx], x[idx], err[idx], inside=True)
         if bad.any() and unsolved_are_nan():
             x[bad] = np.nan
         elif bad.any():
@@ -370,13 +381,16 @@ class InverseThinPlateSpline(Transform):
             self._grid = (g[keep], val[keep], fz[keep], fzb[keep], det[keep])
         return self._grid
 
-    def _reseed(self, target, tol, x, err):
+    def _reseed(self, target, tol, x, err, inside=False):
         """Newton again from the SEEDS grid points whose first Newton step
         towards each target is shortest (not those whose images lie nearest:
         where phi compresses strongly, far points map near the target); the
         solution from the best seed that converges wins, else (x, err) stay;
         they stay too where two seeds find different preimages."""
         g, img, fz, fzb, det = self._seed_grid()
+        if inside:  # only seeds in the region, only answers in it
+            keep = self.region.holds(g)
+            g, img, fz, fzb, det = g[keep], img[keep], fz[keep], fzb[keep], det[keep]
         k = min(SEEDS, g.size)
         if k == 0:
             return x, err
@@ -393,7 +407,10 @@ class InverseThinPlateSpline(Transform):
             pick = xs[np.arange(len(xs)), first]
             # two different preimages: phi is not one-to-one there, refuse to guess
             same = np.where(ok, np.abs(xs - pick[:, None]), 0).max(axis=1) <= 1e-6 * self.scale
-            rows = np.flatnonzero(ok.any(axis=1) & same)
+            rows = ok.any(axis=1) & same
+            if inside:
+                rows &= self.region.holds(pick)
+            rows = np.flatnonzero(rows)
             x[sl][rows] = xs[rows, first[rows]]
             err[sl][rows] = es[rows, first[rows]]
         return x, err
