@@ -88,6 +88,8 @@ def shared_similarity(z, w, first):
 
 
 #: Attributes an inverse or a fused map carries over.
+#: SourceRegion: points per edge of src whose images outline the spline's image of src.
+BOUNDARY_POINTS = 64
 _ATTRS = ("edges", "kind", "points_per_edge", "delta", "spacing", "edge_parameters", "spacing_used")
 
 
@@ -245,7 +247,7 @@ class ConstrainedFPI(Transform):
             attrs["constraints"] = self.constraints[::-1]
         core = self.core.inverse
         if isinstance(self.core, ThinPlateSpline):
-            core.region = SourceRegion(self._z, self._w, self.pre.inverse, self.post)
+            core.region = SourceRegion(self._z, self.pre, self.core, self.post)
         return ConstrainedFPI._from_parts(self._w, self._z, self.post.inverse, core, self.pre.inverse, **attrs)
 
     def _fuse_with(self, nxt):
@@ -278,20 +280,24 @@ class ConstrainedFPI(Transform):
 
 
 class SourceRegion:
-    """Where the spline's Newton inverse should land: inside src (z) for
-    targets inside dst (w); ``pre_inverse`` takes spline coordinates back
-    to src's, ``post`` the spline's values to dst's. The spline can fold
-    outside src and cover part of dst's image a second time."""
+    """Where the spline's Newton inverse should land: in src (z, counter-
+    clockwise or not) for targets in the spline's image of src, a polygon
+    through the images of BOUNDARY_POINTS points per edge of src.
+    ``pre``/``post``: the forward map's Möbius parts. The spline can fold
+    outside src and cover part of src's image a second time."""
 
-    def __init__(self, z, w, pre_inverse, post):
-        self.z, self.w, self.pre_inverse, self.post = z, w, pre_inverse, post
+    def __init__(self, z, pre, core, post):
+        t = np.linspace(0.0, 1.0, BOUNDARY_POINTS, endpoint=False)
+        edge = np.concatenate([a + t * (b - a) for a, b in zip(z, np.roll(z, -1))])
+        self.z, self.pre_inverse = z, pre.inverse
+        with np.errstate(all="ignore"):
+            self.image = core.map_complex(pre.map_complex(edge))
 
     def holds(self, x):
         return inside_quad(self.z, self.pre_inverse.map_complex(x))
 
     def wants(self, target):
-        with np.errstate(all="ignore"):
-            return inside_quad(self.w, self.post.map_complex(target))
+        return inside_quad(self.image, target)
 
 
 def as_mobius(t):

@@ -391,7 +391,7 @@ class InverseThinPlateSpline(Transform):
         if inside:  # only seeds in the region, only answers in it
             keep = self.region.holds(g)
             g, img, fz, fzb, det = g[keep], img[keep], fz[keep], fzb[keep], det[keep]
-        k = min(SEEDS, g.size)
+        k = min(SEEDS * (3 if inside else 1), g.size)
         if k == 0:
             return x, err
         rows_per = max(1, CHUNK // g.size)
@@ -403,14 +403,13 @@ class InverseThinPlateSpline(Transform):
             xs, es = self._newton(g[near].ravel(), np.repeat(target[sl], k), np.repeat(tol[sl], k))
             xs, es = xs.reshape(-1, k), es.reshape(-1, k)
             ok = es <= (HOST_RTOL / HOST_AIM) * tol[sl, None]
+            if inside:
+                ok &= self.region.holds(xs.ravel()).reshape(xs.shape)
             first = np.argmax(ok, axis=1)
             pick = xs[np.arange(len(xs)), first]
             # two different preimages: phi is not one-to-one there, refuse to guess
             same = np.where(ok, np.abs(xs - pick[:, None]), 0).max(axis=1) <= 1e-6 * self.scale
-            rows = ok.any(axis=1) & same
-            if inside:
-                rows &= self.region.holds(pick)
-            rows = np.flatnonzero(rows)
+            rows = np.flatnonzero(ok.any(axis=1) & same)
             x[sl][rows] = xs[rows, first[rows]]
             err[sl][rows] = es[rows, first[rows]]
         return x, err
