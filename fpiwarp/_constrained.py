@@ -297,7 +297,12 @@ class SourceRegion:
         return inside_quad(self.z, self.pre_inverse.map_complex(x))
 
     def wants(self, target):
-        return inside_quad(self.image, target)
+        im = self.image
+        near = (target.real >= im.real.min()) & (target.real <= im.real.max())
+        near &= (target.imag >= im.imag.min()) & (target.imag <= im.imag.max())
+        out = np.zeros(target.shape, dtype=bool)
+        out[near] = inside_quad(im, target[near])
+        return out
 
 
 def as_mobius(t):
