@@ -315,11 +315,13 @@ class InverseThinPlateSpline(Transform):
             x[idx], err[idx] = self._reseed(target[idx], tol[idx], x[idx], err[idx])
             bad = ~(err <= HOST_RTOL * size)
         if self.region is not None:  # phi may not be one-to-one: prefer the region's preimage
-            idx = np.flatnonzero(~bad)
-            idx = idx[~self.region.holds(x[idx])]
+            idx = np.flatnonzero(bad)
+            done = np.flatnonzero(~bad)
+            idx = np.union1d(idx, done[~self.region.holds(x[done])])
             idx = idx[self.region.wants(target[idx])]
             if idx.size:
                 x[idx], err[idx] = self._reseed(target[idx], tol[idx], x[idx], err[idx], inside=True)
+                bad = ~(err <= HOST_RTOL * size)
         if bad.any() and unsolved_are_nan():
             x[bad] = np.nan
         elif bad.any():
