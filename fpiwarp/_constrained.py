@@ -36,10 +36,11 @@ from numpy.typing import ArrayLike
 from ._constraint_fit import edge_similarity, fit_spline
 from ._errors import ArgumentTypeError, ConstraintError
 from ._exactness import check_corners
-from ._foldover import refuse_fold
+from ._foldover import inside_quad, refuse_fold
 from ._linear import RLinear
 from ._mobius import Mobius, centered_at_zero, mobius_product
 from ._quad import check_quad_pair, parallelogram_mobius
+from ._tps import ThinPlateSpline
 from ._transform import Transform, chain
 from .block import MAX_CENTERS, MobiusPart, Stage
 
@@ -87,6 +88,8 @@ def shared_similarity(z, w, first):
 
 
 #: Attributes an inverse or a fused map carries over.
+#: SourceRegion: points per edge of src whose images outline the spline's image of src.
+BOUNDARY_POINTS = 128
 _ATTRS = ("edges", "kind", "points_per_edge", "delta", "spacing", "edge_parameters", "spacing_used")
 
 
@@ -242,9 +245,10 @@ class ConstrainedFPI(Transform):
         attrs = {k: v for k, v in self.__dict__.items() if k in _ATTRS}
         if "constraints" in self.__dict__:
             attrs["constraints"] = self.constraints[::-1]
-        return ConstrainedFPI._from_parts(
-            self._w, self._z, self.post.inverse, self.core.inverse, self.pre.inverse, **attrs
-        )
+        core = self.core.inverse
+        if isinstance(self.core, ThinPlateSpline):
+            core.region = SourceRegion(self._z, self.pre, self.core, self.post)
+        return ConstrainedFPI._from_parts(self._w, self._z, self.post.inverse, core, self.pre.inverse, **attrs)
 
     def _fuse_with(self, nxt):
         """A following Möbius map (or similarity) joins the post-Möbius:
@@ -273,6 +277,34 @@ class ConstrainedFPI(Transform):
             f"ConstrainedFPI(src={self.src.tolist()}, dst={self.dst.tolist()}, "
             f"edges={getattr(self, 'edges', None)})"
         )
+
+
+class SourceRegion:
+    """Where the spline's Newton inverse should land: in src (z, counter-
+    clockwise or not) for targets in the spline's image of src, a polygon
+    through the images of BOUNDARY_POINTS points per edge of src (Chebyshev
+    spaced: the image bends most near the corners; 64 points,
+    either spaced, missed points the image covers).
+    ``pre``/``post``: the forward map's Möbius parts. The spline can fold
+    outside src and cover part of src's image a second time."""
+
+    def __init__(self, z, pre, core, post):
+        t = 0.5 * (1 - np.cos(np.linspace(0.0, np.pi, BOUNDARY_POINTS + 1)[:-1]))  # dense at the corners
+        edge = np.concatenate([a + t * (b - a) for a, b in zip(z, np.roll(z, -1))])
+        self.z, self.pre_inverse = z, pre.inverse
+        with np.errstate(all="ignore"):
+            self.image = core.map_complex(pre.map_complex(edge))
+
+    def holds(self, x):
+        return inside_quad(self.z, self.pre_inverse.map_complex(x))
+
+    def wants(self, target):
+        im = self.image
+        near = (target.real >= im.real.min()) & (target.real <= im.real.max())
+        near &= (target.imag >= im.imag.min()) & (target.imag <= im.imag.max())
+        out = np.zeros(target.shape, dtype=bool)
+        out[near] = inside_quad(im, target[near])
+        return out
 
 
 def as_mobius(t):

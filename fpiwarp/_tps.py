@@ -37,6 +37,12 @@ NEWTON_CHUNK = 1 << 17
 HOST_AIM = 1e-13
 HOST_RTOL = 1e-9
 HOST_MAX_ITERS = 60
+#: Where Newton from the affine seed fails (the seed can sit in a fold of
+#: phi just outside the region, where Newton stalls at a local minimum of
+#: the residual), it restarts from the SEEDS points of a SEED_GRID² grid
+#: over the centers whose images lie nearest the target.
+SEED_GRID = 48
+SEEDS = 6
 #: Device Newton (float32): iterations and tolerance, in units of the
 #: spline's scale (the radius of its targets, 1 in parallelogram
 #: coordinates). float32 evaluation of a 40-center spline there carries
@@ -260,13 +266,24 @@ class InverseThinPlateSpline(Transform):
     |p - mid|) (scale: radius of the spline's targets, mid: their mean),
     accepts 1e-9 where rounding stops it earlier, and raises
     :class:`~fpiwarp.InverseNotConvergedError` naming how many points
-    failed otherwise: never a silent wrong answer. Non-finite
+    failed otherwise. Where the affine seed fails (it can sit in a fold of
+    phi just outside the region, where Newton stalls), Newton restarts from
+    the grid points with the shortest first step; the answer always solves
+    phi(x) = p, but where phi is not one-to-one (it folds outside the
+    region and the fold's image overlaps the region's) it can be a
+    preimage outside the region. Non-finite
     inputs (the image of a pole) give non-finite outputs.
 
     On the device (``CORE_TPS_INVERSE``) plain Newton runs at most
     ``DEVICE_ITERS`` steps to the float32-sane tolerance ``DEVICE_RTOL ·
     scale``; points that do not get there come out NaN, i.e. "outside".
     """
+
+    #: Optional, set by ConstrainedFPI: an object whose ``wants(target)`` says
+    #: which targets have a preimage in the region and ``holds(x)`` which
+    #: points lie in it; an answer outside the region for a target that
+    #: wants one inside is solved again from grid seeds inside the region.
+    region = None
 
     def __init__(self, tps):
         self.tps = tps
@@ -291,7 +308,36 @@ class InverseThinPlateSpline(Transform):
         mu1, mu2, mu3 = tps.affine_inverse
         size = np.maximum(self.scale, np.abs(target - self.mid))
         tol = HOST_AIM * size
-        x = mu1 * target + mu2 * np.conj(target) + mu3
+        x, err = self._newton(mu1 * target + mu2 * np.conj(target) + mu3, target, tol)
+        bad = ~(err <= HOST_RTOL * size)
+        if bad.any():  # the affine seed can sit in a fold outside the region: seed again
+            idx = np.flatnonzero(bad)
+            x[idx], err[idx] = self._reseed(target[idx], tol[idx], x[idx], err[idx])
+            bad = ~(err <= HOST_RTOL * size)
+        if self.region is not None:  # phi may not be one-to-one: prefer the region's preimage
+            idx = np.flatnonzero(bad)
+            done = np.flatnonzero(~bad)
+            idx = np.union1d(idx, done[~self.region.holds(x[done])])
+            idx = idx[self.region.wants(target[idx])]
+            if idx.size:
+                x[idx], err[idx] = self._reseed(target[idx], tol[idx], x[idx], err[idx], inside=True)
+                bad = ~(err <= HOST_RTOL * size)
+        if bad.any() and unsolved_are_nan():
+            x[bad] = np.nan
+        elif bad.any():
+            first = target[np.flatnonzero(bad)[0]]
+            raise InverseNotConvergedError(
+                f"Newton inverse of the thin-plate spline did not converge for {int(bad.sum())} "
+                f"of {target.size} points (first at spline coordinate {first:.6g}, residual "
+                f"{float(err[bad].max()):.3g}): the map is not invertible there "
+                "(fold-over or far outside its region)"
+            )
+        return x
+
+    def _newton(self, x, target, tol):
+        """Damped Newton from seeds x towards phi(x) = target: (x, |phi(x) - target|)."""
+        tps = self.tps
+        x = np.array(x, dtype=np.complex128)
         val, fz, fzb = tps.wirtinger(x)
         res = val - target
         err = np.abs(res)
@@ -320,18 +366,56 @@ class InverseThinPlateSpline(Transform):
             err[active] = np.abs(res[active])
             # points no step improves have reached their rounding floor
             active = active[(err[active] > tol[active]) & better]
-        bad = ~(err <= HOST_RTOL * size)
-        if bad.any() and unsolved_are_nan():
-            x[bad] = np.nan
-        elif bad.any():
-            first = target[np.flatnonzero(bad)[0]]
-            raise InverseNotConvergedError(
-                f"Newton inverse of the thin-plate spline did not converge for {int(bad.sum())} "
-                f"of {target.size} points (first at spline coordinate {first:.6g}, residual "
-                f"{float(err[bad].max()):.3g}): the map is not invertible there "
-                "(fold-over or far outside its region)"
-            )
-        return x
+        return x, err
+
+    def _seed_grid(self):
+        """A SEED_GRID² grid over the centers' box, grown by half its size, where
+        phi's Jacobian is positive: (points, images, fz, fzb, det), cached."""
+        if not hasattr(self, "_grid"):
+            c = self.tps.centers
+            lo, hi = complex(c.real.min(), c.imag.min()), complex(c.real.max(), c.imag.max())
+            pad = 0.5 * max(hi.real - lo.real, hi.imag - lo.imag, 1e-300)
+            xs = np.linspace(lo.real - pad, hi.real + pad, SEED_GRID)
+            ys = np.linspace(lo.imag - pad, hi.imag + pad, SEED_GRID)
+            g = (xs[None, :] + 1j * ys[:, None]).ravel()
+            val, fz, fzb = self.tps.wirtinger(g)
+            det = np.abs(fz) ** 2 - np.abs(fzb) ** 2
+            keep = (det > 0) & np.isfinite(val)
+            self._grid = (g[keep], val[keep], fz[keep], fzb[keep], det[keep])
+        return self._grid
+
+    def _reseed(self, target, tol, x, err, inside=False):
+        """Newton again from the SEEDS grid points whose first Newton step
+        towards each target is shortest (not those whose images lie nearest:
+        where phi compresses strongly, far points map near the target); the
+        solution from the best seed that converges wins, else (x, err) stay;
+        they stay too where two seeds find different preimages."""
+        g, img, fz, fzb, det = self._seed_grid()
+        if inside:  # only seeds in the region, only answers in it
+            keep = self.region.holds(g)
+            g, img, fz, fzb, det = g[keep], img[keep], fz[keep], fzb[keep], det[keep]
+        k = min(SEEDS * (3 if inside else 1), g.size)
+        if k == 0:
+            return x, err
+        rows_per = max(1, CHUNK // g.size)
+        for s in range(0, target.size, rows_per):
+            sl = slice(s, s + rows_per)
+            r = img[None, :] - target[sl, None]
+            step = np.abs((np.conj(fz) * r - fzb * np.conj(r)) / det)
+            near = np.argsort(step, axis=1)[:, :k]
+            xs, es = self._newton(g[near].ravel(), np.repeat(target[sl], k), np.repeat(tol[sl], k))
+            xs, es = xs.reshape(-1, k), es.reshape(-1, k)
+            ok = es <= (HOST_RTOL / HOST_AIM) * tol[sl, None]
+            if inside:
+                ok &= self.region.holds(xs.ravel()).reshape(xs.shape)
+            first = np.argmax(ok, axis=1)
+            pick = xs[np.arange(len(xs)), first]
+            # two different preimages: phi is not one-to-one there, refuse to guess
+            same = np.where(ok, np.abs(xs - pick[:, None]), 0).max(axis=1) <= 1e-6 * self.scale
+            rows = np.flatnonzero(ok.any(axis=1) & same)
+            x[sl][rows] = xs[rows, first[rows]]
+            err[sl][rows] = es[rows, first[rows]]
+        return x, err
 
     def _wirtinger(self, p):
         x = self._map(p)
