@@ -579,6 +579,38 @@ def test_a_warp_leaves_the_callers_framebuffer_bound(gl):
         mine.release()
 
 
+def test_what_a_caller_finds_bound_stays_usable_after_a_warp_of_another_size(gl):
+    """A caller that binds again what it found bound (Renderer.warp_full,
+    render_image) never gets a framebuffer the warp released: with one of
+    the warper's own framebuffers bound, a warp of one size once left its
+    cached target bound, and the next warp of another size released it."""
+    from fpiwarp import gl as fgl
+
+    ctx, warper, f = gl.ctx, gl.warper, sample_fpi()
+    warper.targets.dummy.use()  # one of the warper's own, as a previous call may leave it
+    gl.warp_image(make_image((30, 20, 3), np.uint8), f, (30, 20), order=1, mode="constant", cval=np.zeros(3),
+                  antialias=True)
+    img = make_image((48, 64, 3), np.uint8)
+    renderer = fgl.Renderer(ctx, warper=warper, antialias=True)
+    try:
+        renderer.set_image(img)
+        renderer.set_transform(f)
+        got = renderer.warp_full()  # a 64×48 target replaces the 20×30 one
+    finally:
+        renderer.release()
+    want = gl.warp_image(img, f, (48, 64), order=1, mode="constant", cval=np.zeros(3), antialias=True)
+    assert_images_agree(got, want, np.uint8)
+    assert ctx.fbo is warper.targets.dummy
+    mine = ctx.simple_framebuffer((8, 8))
+    try:
+        mine.use()
+        gl.map_points(f, np.zeros((3, 2)))
+        assert ctx.fbo is mine  # map_points gives the caller's framebuffer back too
+    finally:
+        ctx.detect_framebuffer(0).use()
+        mine.release()
+
+
 def test_unknown_core_is_refused_by_the_host_and_outside_in_the_shader(gl_backend, monkeypatch):
     from fpiwarp.backends import gl as glb
     from fpiwarp.backends.gl import warper as gl_warper

@@ -3,8 +3,9 @@
 A warper keeps, per moderngl context, the uniform buffer that holds the
 parameter block, the compiled programs (:mod:`.programs`) and the
 textures and framebuffers it reuses between calls (:mod:`.targets`). It
-binds its own framebuffers, gives the caller's back when done, and leaves
-blending, culling and clip distance 0 disabled. Output pixel centers are
+binds its own framebuffers, gives the caller's back when done (its 1×1
+dummy where one of its own was bound: never a target that a later call
+may release), and leaves blending, culling and clip distance 0 disabled. Output pixel centers are
 at integers: a fragment's output position is
 ``view.xy + view.zw * (gl_FragCoord.xy - 0.5)`` (warp.frag), and with
 ``view = (x0, y0, 1, 1)`` window row j is image row y0 + j, so the
@@ -174,20 +175,24 @@ class GLWarper:
             return out.reshape(pts.shape)
         stages = self.set_map(transform.params())
         prog = self.program(ProgramKey("map_points.vert", stages=stages, varyings=("fpw_mapped",)))
+        caller = self._caller_framebuffer()
         self.targets.dummy.use()  # without a bound framebuffer (surfaceless EGL) nothing is captured
-        for a in range(0, flat.shape[0], POINT_CHUNK):
-            chunk = np.ascontiguousarray(flat[a:a + POINT_CHUNK], dtype=np.float32)
-            n = chunk.shape[0]
-            vbo = self.ctx.buffer(chunk.tobytes())
-            res = self.ctx.buffer(reserve=n * 8)
-            vao = self.ctx.vertex_array(prog, [(vbo, "2f", "fpw_point")])
-            try:
-                vao.transform(res, moderngl.POINTS, vertices=n)
-                out[a:a + n] = np.frombuffer(res.read(), dtype=np.float32).reshape(n, 2)
-            finally:
-                vao.release()
-                vbo.release()
-                res.release()
+        try:
+            for a in range(0, flat.shape[0], POINT_CHUNK):
+                chunk = np.ascontiguousarray(flat[a:a + POINT_CHUNK], dtype=np.float32)
+                n = chunk.shape[0]
+                vbo = self.ctx.buffer(chunk.tobytes())
+                res = self.ctx.buffer(reserve=n * 8)
+                vao = self.ctx.vertex_array(prog, [(vbo, "2f", "fpw_point")])
+                try:
+                    vao.transform(res, moderngl.POINTS, vertices=n)
+                    out[a:a + n] = np.frombuffer(res.read(), dtype=np.float32).reshape(n, 2)
+                finally:
+                    vao.release()
+                    vbo.release()
+                    res.release()
+        finally:
+            caller.use()
         return out.reshape(pts.shape)
 
     # ---- per pixel
@@ -245,16 +250,22 @@ class GLWarper:
             mesh.release()
 
     # ---- shared rendering
-    def _render(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False):
+    def _caller_framebuffer(self):
+        """The framebuffer to bind again after a call: the caller's, or our
+        1×1 dummy where one of ours is bound. Never a cached target: the
+        next call with another size releases it, and a caller that binds
+        again what it found bound (Renderer.warp_full, render_image) would
+        then bind a released framebuffer."""
         caller = bound_framebuffer(self.ctx)
-        if self.targets.owns(caller):
-            caller = None  # ours (perhaps replaced below): nothing to give back
+        return self.targets.dummy if self.targets.owns(caller) else caller
+
+    def _render(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False):
+        caller = self._caller_framebuffer()
         try:
             return self._render_bound(image, output_shape, order, mode, cval, mesh, hardware_filter, stages,
                                       antialias)
         finally:
-            if caller is not None:
-                caller.use()  # a caller drawing into its own framebuffer keeps it bound
+            caller.use()  # a caller drawing into its own framebuffer keeps it bound
 
     def _program_keys(self, image, order, mode, mesh, hw, tiled, stages, antialias=False):
         """(key of the warp or mesh program, key of the mesh's fill pass or
