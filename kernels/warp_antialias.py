@@ -30,6 +30,7 @@ from .warp_map import (
     ROW_SCALE,
     STAGE_ROWS,
     abs2,
+    bilinear_indices,
     border_index,
     cdiv,
     clip_coord,
@@ -159,55 +160,9 @@ def tap_count(length: float):
 
 
 @wp.func
-def sample_channel(img: wp.array3d(dtype=Any), s: wp.vec2, c: int, order: int, mode: int, cv: float):
-    """_sampling.sample of channel c at s (cval when s is out of range)."""
-    if not in_range(s):
-        return cv
-    h = img.shape[0]
-    w = img.shape[1]
-    sx = clip_coord(s[0])
-    sy = clip_coord(s[1])
-    if order == 0:
-        ix = int(wp.floor(sx + 0.5))
-        iy = int(wp.floor(sy + 0.5))
-        ok = inside(ix, w, mode) and inside(iy, h, mode)
-        return tap(float(img[border_index(iy, h, mode), border_index(ix, w, mode), c]), cv, ok)
-    fx = wp.floor(sx)
-    fy = wp.floor(sy)
-    tx = sx - fx
-    ty = sy - fy
-    if order == 1:
-        x0 = int(fx)
-        y0 = int(fy)
-        c0 = border_index(x0, w, mode)
-        c1 = border_index(x0 + 1, w, mode)
-        r0 = border_index(y0, h, mode)
-        r1 = border_index(y0 + 1, h, mode)
-        v00 = tap(float(img[r0, c0, c]), cv, inside(y0, h, mode) and inside(x0, w, mode))
-        v01 = tap(float(img[r0, c1, c]), cv, inside(y0, h, mode) and inside(x0 + 1, w, mode))
-        v10 = tap(float(img[r1, c0, c]), cv, inside(y0 + 1, h, mode) and inside(x0, w, mode))
-        v11 = tap(float(img[r1, c1, c]), cv, inside(y0 + 1, h, mode) and inside(x0 + 1, w, mode))
-        return (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
-    wx = cubic_weights(tx)
-    wy = cubic_weights(ty)
-    x0 = int(fx) - 1
-    y0 = int(fy) - 1
-    v = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
-    for j in range(4):
-        acc = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
-        row = border_index(y0 + j, h, mode)
-        for i in range(4):
-            ok = inside(y0 + j, h, mode) and inside(x0 + i, w, mode)
-            acc = acc + wx[i] * tap(float(img[row, border_index(x0 + i, w, mode), c]), cv, ok)
-        v = v + wy[j] * acc
-    return v
-
-
-@wp.func
 def sample_pixel(img: wp.array3d(dtype=Any), s: wp.vec2, order: int, mode: int, cval: wp.vec4):
-    """_sampling.sample of every channel at s (in range), as sample_channel
-    per channel but with the taps' indices and weights computed once: the
-    sub-samples' sampler."""
+    """_sampling.sample of every channel at s (in range), the taps' indices
+    and weights computed once for all channels."""
     h = img.shape[0]
     w = img.shape[1]
     sx = clip_coord(s[0])
@@ -229,10 +184,7 @@ def sample_pixel(img: wp.array3d(dtype=Any), s: wp.vec2, order: int, mode: int, 
     if order == 1:
         x0 = int(fx)
         y0 = int(fy)
-        c0 = border_index(x0, w, mode)
-        c1 = border_index(x0 + 1, w, mode)
-        r0 = border_index(y0, h, mode)
-        r1 = border_index(y0 + 1, h, mode)
+        c0, c1, r0, r1 = bilinear_indices(x0, y0, w, h, mode)
         ok00 = inside(y0, h, mode) and inside(x0, w, mode)
         ok01 = inside(y0, h, mode) and inside(x0 + 1, w, mode)
         ok10 = inside(y0 + 1, h, mode) and inside(x0, w, mode)
@@ -280,12 +232,13 @@ def pixel_antialias(
     ey = wp.vec2(dzb[1] - dz[1], dz[0] - dzb[0])
     nx = tap_count(wp.sqrt(ex[0] * ex[0] + ex[1] * ex[1]))
     ny = tap_count(wp.sqrt(ey[0] * ey[0] + ey[1] * ey[1]))
-    if nx == 1 and ny == 1:
-        for c in range(img.shape[2]):
-            store(out, y, x, c, sample_channel(img, s, c, order, mode, cval[c]), top)
-        return
     if not in_range(s):
         store_cval(out, y, x, cval, top)
+        return
+    if nx == 1 and ny == 1:
+        v = sample_pixel(img, s, order, mode, cval)
+        for c in range(img.shape[2]):
+            store(out, y, x, c, v[c], top)
         return
     fnx = float(nx)
     fny = float(ny)

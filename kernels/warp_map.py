@@ -325,6 +325,14 @@ def tap(value: float, cval: float, is_inside: bool):
 
 
 @wp.func
+def bilinear_indices(x0: int, y0: int, w: int, h: int, mode: int):
+    """Columns c0, c1 and rows r0, r1 of order 1's four taps, whose top-left
+    pixel is (x0, y0), in a w × h image (the border rule of ``mode``)."""
+    return border_index(x0, w, mode), border_index(x0 + 1, w, mode), border_index(y0, h, mode), border_index(
+        y0 + 1, h, mode)
+
+
+@wp.func
 def cubic_weights(t: float):
     """Keys' cubic convolution weights (a = -0.5) for offsets -1, 0, 1, 2."""
     t2 = t * t
@@ -437,10 +445,7 @@ def pixel_linear(
     ty = sy - fy
     x0 = int(fx)
     y0 = int(fy)
-    c0 = border_index(x0, w, mode)
-    c1 = border_index(x0 + 1, w, mode)
-    r0 = border_index(y0, h, mode)
-    r1 = border_index(y0 + 1, h, mode)
+    c0, c1, r0, r1 = bilinear_indices(x0, y0, w, h, mode)
     in_x0 = inside(x0, w, mode)  # all True but in constant mode
     in_x1 = inside(x0 + 1, w, mode)
     in_y0 = inside(y0, h, mode)
