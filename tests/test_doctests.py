@@ -13,7 +13,7 @@ from conftest import use_backend
 MODULES = [
     "_fpi", "_linear", "_mobius", "_tps", "_constrained", "_local", "_warp",
     "_transform", "_errors", "batch", "batch_folders", "batch_points", "positions", "io", "backends",
-    "curves", "metrics", "spec",
+    "curves", "metrics", "spec", "backends.lru",
 ]
 GL_MODULES = ["viewer.offscreen", "viewer.renderer"]
 

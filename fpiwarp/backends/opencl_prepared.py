@@ -12,11 +12,10 @@ block is uploaded only when its bytes differ from the job's last one.
 packed and checked once, and each kind of call keeps its job.
 """
 
-from collections import OrderedDict
-
 import numpy as np
 
 from .._errors import SizeLimitError
+from .lru import LruCache
 
 #: Bytes allocated past the source image: sampling reads a pixel of up to
 #: 4 bytes as one 32-bit word, which may run past the last pixel.
@@ -35,26 +34,15 @@ def job_key(image, output_shape, order, mode, cval, antialias, kind):
             tuple(float(v) for v in cval), bool(antialias), kind)
 
 
-class JobCache:
+class JobCache(LruCache):
     """An LRU of :class:`ClJob` by :func:`job_key`."""
 
     def __init__(self, size=MAX_JOBS):
-        self.size, self._jobs = size, OrderedDict()
+        super().__init__(size)
 
     def get(self, backend, image, output_shape, order, mode, cval, antialias, kind):
         key = job_key(image, output_shape, order, mode, cval, antialias, kind)
-        job = self._jobs.get(key)
-        if job is None:
-            job = ClJob(backend, image, output_shape, order, mode, cval, antialias, kind)
-            self._jobs[key] = job
-            while len(self._jobs) > self.size:
-                self._jobs.popitem(last=False)
-        else:
-            self._jobs.move_to_end(key)
-        return job
-
-    def clear(self):
-        self._jobs.clear()
+        return self.lookup(key, lambda: ClJob(backend, image, output_shape, order, mode, cval, antialias, kind))
 
 
 class ClJob:

@@ -11,12 +11,12 @@ uploaded once, and each kind of call keeps its job.
 """
 
 import itertools
-from collections import OrderedDict
 
 import numpy as np
 
 from ..block import describe
 from ..block.sampling_rules import MODES
+from .lru import LruCache
 
 #: Jobs kept per backend (plain calls) and per bound map, least recently used dropped.
 MAX_JOBS = 8
@@ -28,23 +28,15 @@ def job_key(image, output_shape, order, mode, cval, kind_key):
             tuple(float(v) for v in cval), kind_key)
 
 
-class JobCache:
+class JobCache(LruCache):
     """An LRU of :class:`WarpJob` by :func:`job_key`."""
 
     def __init__(self, size=MAX_JOBS):
-        self.size, self._jobs = size, OrderedDict()
+        super().__init__(size)
 
     def get(self, backend, block, image, output_shape, order, mode, cval, kind_key):
         key = job_key(image, output_shape, order, mode, cval, kind_key)
-        job = self._jobs.get(key)
-        if job is None:
-            job = WarpJob(backend, block, image, output_shape, order, mode, cval, kind_key)
-            self._jobs[key] = job
-            while len(self._jobs) > self.size:
-                self._jobs.popitem(last=False)
-        else:
-            self._jobs.move_to_end(key)
-        return job
+        return self.lookup(key, lambda: WarpJob(backend, block, image, output_shape, order, mode, cval, kind_key))
 
 
 class WarpJob:
