@@ -315,6 +315,21 @@ def check_warp_options(transform, order, mode):
     return check_order(order), check_mode(mode)
 
 
+def check_backend_call(image_shape, output_shape, dtype, order, mode, capabilities, backend, backend_options,
+                       antialias):
+    """Check that ``backend`` (of ``capabilities``) warps ``dtype`` images
+    at ``order`` in ``mode``, takes ``backend_options`` and ``antialias``,
+    and holds images of these (H, W, C) sizes; return the options (with
+    ``antialias=True`` when it is asked for, nothing when not)."""
+    if dtype not in capabilities.dtypes or order not in capabilities.orders or mode not in capabilities.modes:
+        raise ArgumentError(f"the {backend} backend cannot warp {dtype} images at order {order} in mode {mode!r}")
+    options = check_backend_options(backend_options, capabilities, backend, order, mode)
+    if check_antialias(antialias, capabilities, backend):
+        options["antialias"] = True
+    check_sizes(image_shape, output_shape, dtype, capabilities, backend)
+    return options
+
+
 def check_warp_arguments(image, transform, output_shape, order, mode, cval, capabilities, backend,
                          backend_options=None, antialias=False):
     """Check everything :func:`fpiwarp.warp_image` takes against the
@@ -325,11 +340,7 @@ def check_warp_arguments(image, transform, output_shape, order, mode, cval, capa
     img, squeeze = check_image(image)
     cval = check_cval(cval, img.shape[2], img.dtype)
     shape = check_output_shape(output_shape, img)
-    if img.dtype not in capabilities.dtypes or order not in capabilities.orders or mode not in capabilities.modes:
-        raise ArgumentError(f"the {backend} backend cannot warp {img.dtype} images at order {order} in mode {mode!r}")
-    options = check_backend_options(backend_options, capabilities, backend, order, mode)
-    if check_antialias(antialias, capabilities, backend):
-        options["antialias"] = True
-    check_sizes(img.shape, shape, img.dtype, capabilities, backend)
+    options = check_backend_call(img.shape, shape, img.dtype, order, mode, capabilities, backend, backend_options,
+                                 antialias)
     check_map_size(transform.inverse, capabilities, backend)  # the kernels evaluate the inverse
     return WarpArguments(np.ascontiguousarray(img), squeeze, shape, order, mode, cval, options)

@@ -10,13 +10,11 @@ from .._errors import ArgumentError, DeviceMismatchError
 from ..backends import backend_capabilities, check_backend_name
 from ..block import pack
 from ..validation import (
-    check_antialias,
-    check_backend_options,
+    check_backend_call,
     check_cval,
     check_image,
     check_map_size,
     check_output_shape,
-    check_sizes,
     check_warp_options,
 )
 from . import convert
@@ -85,12 +83,7 @@ def check_device_warp(shape, dtype, transform, output_shape, order, mode, cval, 
     proxy, _ = check_image(np.broadcast_to(np.zeros((), dtype), shape))
     cval = check_cval(cval, shape[2], proxy.dtype)
     out_shape = check_output_shape(output_shape, proxy)
-    if proxy.dtype not in caps.dtypes or order not in caps.orders or mode not in caps.modes:
-        raise ArgumentError(f"the {backend} backend cannot warp {proxy.dtype} images at order {order} in mode {mode!r}")
-    options = check_backend_options(backend_options, caps, backend, order, mode)
-    if check_antialias(antialias, caps, backend):
-        options["antialias"] = True
-    check_sizes(shape, out_shape, proxy.dtype, caps, backend)
+    options = check_backend_call(shape, out_shape, proxy.dtype, order, mode, caps, backend, backend_options, antialias)
     inverted = Inverted(transform)
     check_map_size(inverted.inverse, caps, backend)
     return out_shape, order, mode, cval, options, inverted
