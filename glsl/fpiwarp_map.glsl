@@ -27,9 +27,16 @@
 
 // The parameter block: row 0 header, then the stages (fpiwarp/block/layout.py).
 // std140 gives an array of vec4 a stride of 16 bytes: no padding traps.
+#ifdef FPW_BATCH
+// a batch: the instance's block of a storage buffer (see batch.glsl)
+#define FPW_BATCH_VARYING flat in
+#define FPW_BATCH_BLOCK fpw_batch.x
+#include "batch.glsl"
+#else
 layout(std140) uniform FpiwarpParams {
     vec4 fpw_rows[FPW_MAX_ROWS];
 };
+#endif
 
 // Row i of the block. In a full-screen pass (fullscreen.vert) specialized
 // to a kind of map, the host defines FPW_HOT_STAGES: the rows read for
@@ -233,21 +240,34 @@ FPW_DECLARE_PER_DRAW
 // Integer images are integer textures read with texelFetch: weights and
 // sums are computed here in float, never by the texture unit.
 // FPW_GATHER_C(uv, c): channel c of the 2×2 texels around uv, as floats.
+// A batch (FPW_BATCH) reads layer fpw_batch.y of a texture array; the
+// texel and gather coordinates below are the single image's otherwise.
+#ifdef FPW_BATCH
+#define FPW_SAMPLER sampler2DArray
+#define FPW_USAMPLER usampler2DArray
+#define FPW_AT(ij) ivec3(ij, fpw_batch.y)
+#define FPW_UV(uv) vec3(uv, float(fpw_batch.y))
+#else
+#define FPW_SAMPLER sampler2D
+#define FPW_USAMPLER usampler2D
+#define FPW_AT(ij) ij
+#define FPW_UV(uv) uv
+#endif
 #if defined(FPW_INT_TEXTURE)
-uniform usampler2D fpw_src;
-vec4 fpw_fetch(ivec2 ij) { return vec4(texelFetch(fpw_src, ij, 0)); }
-#define FPW_GATHER_C(uv, c) vec4(textureGather(fpw_src, uv, c))
+uniform FPW_USAMPLER fpw_src;
+vec4 fpw_fetch(ivec2 ij) { return vec4(texelFetch(fpw_src, FPW_AT(ij), 0)); }
+#define FPW_GATHER_C(uv, c) vec4(textureGather(fpw_src, FPW_UV(uv), c))
 #elif defined(FPW_UNORM_TEXTURE)
 // uint8 as a normalized texture: texel v reads as v / 255 (the common,
 // fastest texture format of software rasterizers); * 255 gives v back to
 // within 1e-5, far below the rounding step.
-uniform sampler2D fpw_src;
-vec4 fpw_fetch(ivec2 ij) { return texelFetch(fpw_src, ij, 0) * FPW_UNORM_TEXTURE; }
-#define FPW_GATHER_C(uv, c) (textureGather(fpw_src, uv, c) * FPW_UNORM_TEXTURE)
+uniform FPW_SAMPLER fpw_src;
+vec4 fpw_fetch(ivec2 ij) { return texelFetch(fpw_src, FPW_AT(ij), 0) * FPW_UNORM_TEXTURE; }
+#define FPW_GATHER_C(uv, c) (textureGather(fpw_src, FPW_UV(uv), c) * FPW_UNORM_TEXTURE)
 #else
-uniform sampler2D fpw_src;
-vec4 fpw_fetch(ivec2 ij) { return texelFetch(fpw_src, ij, 0); }
-#define FPW_GATHER_C(uv, c) textureGather(fpw_src, uv, c)
+uniform FPW_SAMPLER fpw_src;
+vec4 fpw_fetch(ivec2 ij) { return texelFetch(fpw_src, FPW_AT(ij), 0); }
+#define FPW_GATHER_C(uv, c) textureGather(fpw_src, FPW_UV(uv), c)
 #endif
 
 // FPW_TILED: the texture holds source pixels fpw_tile = [x0, x0 + w) ×

@@ -11,17 +11,40 @@
 //   FPW_FLAT_PER_DRAW: the per-draw values of the fragment program (the
 //     list in per_draw.glsl), declared here as uniforms under their names
 //     and copied into the flat members of the block FpwPerDraw.
+//   FPW_BATCH: instance k covers framebuffer rows [k * fpw_batch_rows,
+//     (k + 1) * fpw_batch_rows) of fpw_batch_count images (draw 6 vertices
+//     per instance) and reads block k * fpw_batch_step (see batch.glsl).
+#ifdef FPW_BATCH
+#define FPW_BATCH_VARYING flat out
+#define FPW_BATCH_BLOCK (gl_InstanceID * fpw_batch_step)
+#include "batch.glsl"
+uniform int fpw_batch_rows;
+uniform int fpw_batch_count;
+uniform int fpw_batch_step;
+#endif
 #ifdef FPW_HOT_STAGES
+#ifndef FPW_BATCH
 layout(std140) uniform FpiwarpParams {
     vec4 fpw_rows[FPW_MAX_ROWS];
 };
+#endif
 flat out vec4 fpw_hot[FPW_HOT_ROWS * FPW_HOT_STAGES];
 #endif
 #include "per_draw.glsl"
 FPW_FORWARD_PER_DRAW_DECLS
 
 void main() {
+#ifdef FPW_BATCH
+    // two triangles over the instance's rows (pixel centers are half a
+    // pixel from the edges: no rounding of the corners moves a pixel)
+    int k = gl_InstanceID;
+    fpw_batch = ivec3(FPW_BATCH_BLOCK, k, k * fpw_batch_rows);
+    int v = gl_VertexID;
+    float y = (v == 2 || v == 3 || v == 5) ? float(k + 1) : float(k);
+    vec2 p = vec2((v == 1 || v == 4 || v == 5) ? 1.0 : -1.0, 2.0 * y / float(fpw_batch_count) - 1.0);
+#else
     vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
+#endif
     gl_Position = vec4(p, 0.0, 1.0);
 #ifdef FPW_HOT_STAGES
     for (int k = 0; k < FPW_HOT_STAGES; ++k) {

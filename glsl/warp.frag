@@ -13,15 +13,23 @@
 // (fpw_view is a per-draw value, declared by fpiwarp_map.glsl from the
 // list in per_draw.glsl.)
 
+// A batch (FPW_BATCH) draws image k at framebuffer rows from fpw_batch.z on
+// (see batch.glsl): its fragments count rows from there.
+#ifdef FPW_BATCH
+#define FPW_FRAG_XY (gl_FragCoord.xy - vec2(0.0, float(fpw_batch.z)))
+#else
+#define FPW_FRAG_XY gl_FragCoord.xy
+#endif
+
 void main() {
 #if defined(FPW_PACK_PIXELS)
     // Window column j holds output columns FPW_PACK_PIXELS * j + k.
-    vec2 xy = fpw_view.xy + fpw_view.zw * vec2(FPW_PACK_PIXELS * (gl_FragCoord.x - 0.5), gl_FragCoord.y - 0.5);
+    vec2 xy = fpw_view.xy + fpw_view.zw * vec2(FPW_PACK_PIXELS * (FPW_FRAG_XY.x - 0.5), FPW_FRAG_XY.y - 0.5);
     fpw_emit_packed(xy, fpw_view.z);
 #elif defined(FPW_FILL)
     fpw_emit(fpw_cval);
 #else
-    vec2 xy = fpw_view.xy + fpw_view.zw * (gl_FragCoord.xy - 0.5);
+    vec2 xy = fpw_view.xy + fpw_view.zw * (FPW_FRAG_XY - 0.5);
 #ifdef FPW_ANTIALIAS
     fpw_emit(fpw_sample_antialiased(xy));
 #else

@@ -75,6 +75,7 @@ GL = Capabilities(
     max_side=MAX_DEVICE_SIDE,
     max_stages=MAX_STAGES,
     antialias=True,
+    batches=True,
     options=(
         BackendOption(
             "hardware_filter",

@@ -55,6 +55,16 @@ class Backend:
         return self.warper.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
                                       hardware_filter=hardware_filter, antialias=antialias)
 
+    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False):
+        """A validated (N, H, W, C) stack warped by one map or one map per
+        image, one instanced draw per kind of map (see :mod:`.batch`)."""
+        from .batch import warp_batch  # noqa: PLC0415 - loaded with the first batch
+
+        check_thread()
+        blocks = [t.inverse.params() for t in transforms]
+        return warp_batch(self.warper, stack, blocks, output_shape, order=order, mode=mode, cval=cval,
+                          antialias=antialias)
+
     def bind(self, transform):
         """``transform`` prepared for many images: its inverse's block packed
         and checked once (:class:`BoundMap`)."""

@@ -179,8 +179,9 @@ def flat_value_sources(key, varying_slots):
     many stages as ``varying_slots`` (vec4 slots between the stages) hold
     beside them. Plain uniforms when even the per-draw values do not fit."""
     fs_defines = fragment_defines(key)
-    # MAX_PER_DRAW slots for the per-draw values, one for gl_Position
-    free = varying_slots - 1 - MAX_PER_DRAW
+    # MAX_PER_DRAW slots for the per-draw values, one for gl_Position (and
+    # one for a batch's instance values, glsl/batch.glsl)
+    free = varying_slots - 1 - MAX_PER_DRAW - ("FPW_BATCH" in key.flags)
     if free < 0:
         return shader_source(FULLSCREEN, key.defines()), shader_source(key.fragment, fs_defines)
     hot = min(len(key.stages or ()), free // HOT_ROWS)

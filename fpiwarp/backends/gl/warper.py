@@ -341,6 +341,19 @@ class GLWarper:
                 self.targets.get("sampler").clear(0)
         return out
 
+    # ---- for batches (fpiwarp.backends.gl.batch)
+    def warp_program_key(self, image, order, mode, stages, antialias=False):
+        """(key, packs) of the per-pixel warp program that :meth:`warp_block`
+        uses for an untiled ``image`` with software sampling, after
+        :meth:`set_map` (or ``short_map`` set) for a block of kind ``stages``."""
+        key, _, packs = self._program_keys(image, order, mode, None, False, False, stages, antialias)
+        return key, packs
+
+    def draw_tile(self, image, out, prog, draw, box, packs=False):
+        """Render output pixels box = (x0, y0, x1, y1) of ``out`` by ``draw``
+        (the warp program ``prog``) and read them back (see :meth:`warp_block`)."""
+        self._draw_tile(image, out, (prog, None), draw, box, packs)
+
     def _upload_source(self, prog, image, hw, order, mode, cval):
         h, w, c = image.shape
         if hw:

@@ -1,0 +1,152 @@
+"""A stack of images warped in one instanced draw per kind of map (GL).
+
+The N sources go into a 2D texture array (one layer each) and the N
+parameter blocks into a shader storage buffer, one block per
+:data:`MAX_ROWS` vec4 rows (N blocks do not fit one uniform block). One
+instanced draw of the warp program compiled with ``FPW_BATCH`` renders
+all N outputs into one tall framebuffer: instance k covers rows
+[k * rows, (k + 1) * rows), samples layer k and evaluates block k (or
+block 0 for one map shared by all; glsl/batch.glsl). The per-pixel code
+is the single image's, line for line (only the accessor of the block and
+the texture coordinates differ), so the batch equals the loop of
+:meth:`GLWarper.warp_block` bit for bit, and the atlas reads back as
+consecutive (rows, cols, C) images.
+
+Programs are specialised per kind of map (as for one image), so maps are
+grouped by kind: a group is one draw (N FPIs: one draw; k kinds: k draws).
+A draw holds at most as many images as fit the size limit of the target
+(``max_size // rows``), the texture array's layers, the storage buffer's
+size and :data:`CHUNK_BYTES`; larger groups are several draws, never
+refused. Outputs wider than the size limit are drawn in column tiles, as
+for one image. Sources beyond the size limit (the single-image path
+tiles those) and drivers without shader storage buffers go image by
+image.
+"""
+
+import moderngl
+import numpy as np
+
+from ...block import describe
+from .context import bound_framebuffer
+from .programs import MAX_ROWS, set_uniform
+from .tiling import SOURCE_TEXTURE_DTYPES, tiles
+
+#: Bytes of source and output pixels in one draw, at most (at least one image).
+CHUNK_BYTES = 256 << 20
+#: Shader storage binding point of the stacked blocks.
+BATCH_BINDING = 0
+
+
+def supports_batches(ctx):
+    """Whether the context reads storage buffers in both shader stages."""
+    info = ctx.info
+    return ("GL_ARB_shader_storage_buffer_object" in ctx.extensions
+            and (info.get("GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS") or 0) > 0
+            and (info.get("GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS") or 0) > 0)
+
+
+def kind_groups(blocks, n, specialize):
+    """[(stages, is_short, indices of the images, whether each has its own
+    block)]: the images grouped by the kind of their map (one group when
+    not specializing, or for one map shared by all ``n`` images)."""
+    kinds = [describe(b) for b in blocks]
+    if len(blocks) == 1:
+        kind = kinds[0]
+        stages = tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None
+        return [(stages, specialize and kind.is_short, np.arange(n), False)]
+    groups = {}
+    for i, kind in enumerate(kinds):
+        stages = tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None
+        groups.setdefault((stages, specialize and kind.is_short), []).append(i)
+    return [(stages, short, np.array(idx), True) for (stages, short), idx in groups.items()]
+
+
+def images_per_draw(warper, image_shape, output_shape, itemsize):
+    """How many images one draw holds (>= 1; see the module's docstring)."""
+    (h, w, _), (oh, ow) = image_shape, output_shape
+    info = warper.ctx.info
+    per_image = (h * w + oh * ow) * 4 * itemsize
+    limits = [warper.max_size // oh, info.get("GL_MAX_ARRAY_TEXTURE_LAYERS") or 256, CHUNK_BYTES // per_image,
+              (info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 1 << 24) // (MAX_ROWS * 16)]
+    return max(1, min(limits))
+
+
+def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antialias=False):
+    """An (N, H, W, C) stack warped by the maps from output to source
+    whose parameter blocks are ``blocks`` (one for all or one per image):
+    (N, rows, cols, C), equal to the loop of ``warper.warp_block``."""
+    stack = np.ascontiguousarray(stack)
+    n, h, w, c = stack.shape
+    oh, ow = (int(v) for v in output_shape)
+    blocks = [np.ascontiguousarray(b, dtype=np.float32) for b in blocks]
+    cval = np.zeros(c) if cval is None else np.broadcast_to(np.asarray(cval, np.float64), (c,))
+    if h > warper.max_size or w > warper.max_size or oh > warper.max_size or not supports_batches(warper.ctx):
+        maps = blocks * n if len(blocks) == 1 else blocks
+        return np.stack([warper.warp_block(stack[i], maps[i], (oh, ow), order=order, mode=mode, cval=cval,
+                                           antialias=antialias) for i in range(n)])
+    out = np.empty((n, oh, ow, c), dtype=stack.dtype)
+    caller = bound_framebuffer(warper.ctx)
+    if warper.targets.owns(caller):
+        caller = None
+    try:
+        per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize)
+        for stages, short, idx, own in kind_groups(blocks, n, warper.specialize):
+            warper.short_map = short
+            key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias)
+            prog = warper.program(key.with_changes(flags=key.flags + ("FPW_BATCH",)))
+            storage = prog.get("FpiwarpBatch", None)
+            if storage is not None:
+                storage.binding = BATCH_BINDING
+            set_sampling_values(prog, stack, (oh, ow), cval, own)
+            for a in range(0, len(idx), per_draw):
+                draw_group(warper, prog, stack, blocks, idx[a:a + per_draw], out, mode, packs, own)
+    finally:
+        warper.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+        if caller is not None:
+            caller.use()
+    return out
+
+
+def set_sampling_values(prog, stack, output_shape, cval, own):
+    """The per-draw values of a batch program (as warp_block sets them)."""
+    top = float(np.iinfo(stack.dtype).max) if stack.dtype.kind == "u" else 0.0
+    set_uniform(prog, "fpw_src_size", (stack.shape[2], stack.shape[1]))
+    set_uniform(prog, "fpw_cval", tuple(np.resize(cval, 4).astype(float)))
+    set_uniform(prog, "fpw_top", top)
+    set_uniform(prog, "fpw_out_scale", 1.0)
+    set_uniform(prog, "fpw_batch_rows", int(output_shape[0]))
+    set_uniform(prog, "fpw_batch_step", 1 if own else 0)
+
+
+def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own):
+    """One instanced draw: images ``idx`` of ``stack`` into ``out[idx]``
+    (several draws only where the output is wider than the size limit)."""
+    _, h, w, c = stack.shape
+    m, (oh, ow) = len(idx), out.shape[1:3]
+    targets = warper.targets
+    layers = targets.cached("batch_src", (w, h, m, c, stack.dtype),
+                            lambda: warper.ctx.texture_array((w, h, m), c, dtype=SOURCE_TEXTURE_DTYPES[stack.dtype]))
+    layers.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    layers.repeat_x = layers.repeat_y = mode == "wrap"  # where textureGather places the taps
+    contiguous = idx[-1] - idx[0] == m - 1
+    layers.write(stack[idx[0]:idx[0] + m] if contiguous else stack[idx])
+    mine = [blocks[i] for i in idx] if own else blocks[:1]
+    stacked = np.zeros((len(mine), MAX_ROWS, 4), np.float32)
+    for j, b in enumerate(mine):
+        stacked[j, :len(b)] = b
+    ssbo = targets.cached("batch_blocks", stacked.nbytes, lambda: warper.ctx.buffer(reserve=stacked.nbytes))
+    ssbo.write(stacked.tobytes())
+    ssbo.bind_to_storage_buffer(BATCH_BINDING)
+    layers.use(0)
+    set_uniform(prog, "fpw_batch_count", m)
+    vao = warper.fullscreen_vao(prog)
+    tall = out[idx[0]:idx[0] + m] if contiguous else np.empty((m, oh, ow, c), out.dtype)
+    atlas = tall.reshape(m * oh, ow, c)  # a view: the draw reads back in place
+
+    def draw():
+        vao.render(moderngl.TRIANGLES, vertices=6, instances=m)
+
+    for x0, x1 in tiles(ow, warper.max_size):
+        warper.draw_tile(stack[0], atlas, prog, draw, (x0, 0, x1, m * oh), packs)
+    if not contiguous:
+        out[idx] = tall
