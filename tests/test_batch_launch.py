@@ -1,4 +1,4 @@
-"""Batches in one launch (opencl, warp): warp_batch and map_points_batch
+"""Batches in one launch (opencl, warp; gl: one draw): warp_batch and map_points_batch
 equal the per-image loop of warp_image / map_points on the same backend,
 bit for bit, for any number of images, shapes, dtypes, channels, orders,
 modes, antialiasing and any mix of kinds of map; large batches are split
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 import fpiwarp
 from fpiwarp.backends import get_backend
 
-BATCHING = ["numpy", "opencl", "warp"]
+BATCHING = ["numpy", "opencl", "warp", "gl"]
 
 
 def make_map(kind, k, w, h):
@@ -120,7 +120,7 @@ def test_warp_batch_splits_large_batches(warp_backend, rng, monkeypatch):
                                   loop(stack, maps, "warp", {"order": 3}))
 
 
-@pytest.mark.parametrize("backend", BATCHING + ["gl"])
+@pytest.mark.parametrize("backend", BATCHING)
 @settings(max_examples=15, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(n=st.integers(1, 4), shape=st.sampled_from([(0,), (1,), (7,), (3, 5)]), one=st.booleans(),
        kinds=st.lists(st.sampled_from(KINDS), min_size=4, max_size=4), seed=st.integers(0, 2**32 - 1))
