@@ -12,10 +12,12 @@ backend computes the source position of every output pixel once per
 output size and shares it among the images of that size. A backend whose
 capabilities say ``batches`` warps a whole stack in one call
 (``warp_batch``): "numpy" (one map: one pass for all images), "opencl"
-(one kernel launch per kind of map, :mod:`fpiwarp.backends.opencl_batch`)
-and "warp" (one launch, :mod:`fpiwarp.backends.warp_batches`); the others
-("gl") get one ``warp_image`` call per image. Either way the result
-equals the loop of :func:`fpiwarp.warp_image` bit for bit.
+(one kernel launch per kind of map, :mod:`fpiwarp.backends.opencl_batch`),
+"warp" (one launch, :mod:`fpiwarp.backends.warp_batches`) and "gl" (one
+instanced draw per kind of map, :mod:`fpiwarp.backends.gl.batch`); a
+backend that does not batch gets one ``warp_image`` call per image.
+Either way the result equals the loop of :func:`fpiwarp.warp_image` bit
+for bit.
 """
 
 import os
@@ -132,7 +134,8 @@ def warp_batch(
         loop of :func:`fpiwarp.warp_image` over the images. On a backend
         that batches the stack goes in one call (numpy: one map evaluated
         once for all N images; opencl: one kernel launch per kind of map;
-        warp: one launch), in launches of bounded size for large stacks.
+        warp: one launch; gl: one instanced draw per kind of map), in
+        launches of bounded size for large stacks.
 
     Raises
     ------

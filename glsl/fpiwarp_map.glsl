@@ -16,6 +16,8 @@
 //   FPW_HW_FILTER (the texture unit filters: the explicit fast option),
 //   FPW_GATHER + FPW_CHANNELS (order 1 through textureGather, see below),
 //   FPW_HOT_STAGES (rows forwarded as flat varyings, see fpw_row),
+//   FPW_BATCH (one instance of a batch: its block, source layer and rows,
+//     see batch.glsl),
 //   FPW_ACCUMULATE / FPW_OUT_INT (the fragment output kind, see fpw_emit).
 // The per-draw values the sampler and the output read (fpw_src_size,
 // fpw_cval, ...) are declared from the list in per_draw.glsl.

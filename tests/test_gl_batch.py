@@ -6,7 +6,6 @@ fallbacks, each equal bit for bit to the loop of GLWarper.warp_block.
 
 import numpy as np
 import pytest
-
 from test_batch_launch import make_map
 
 
