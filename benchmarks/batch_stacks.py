@@ -35,7 +35,7 @@ HOW = {
     "numpy": "one call, each image sampled in turn",
     "opencl": "one launch per kind of map",
     "warp": "one launch (generic kernel; the loop runs per-kind ones)",
-    "gl": "the per-image loop (no batched draw yet)",
+    "gl": "one instanced draw per kind of map",
 }
 
 

@@ -98,8 +98,10 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
             if storage is not None:
                 storage.binding = BATCH_BINDING
             set_sampling_values(prog, stack, (oh, ow), cval, own)
-            for a in range(0, len(idx), per_draw):
-                draw_group(warper, prog, stack, blocks, idx[a:a + per_draw], out, mode, packs, own)
+            draws = -(-len(idx) // per_draw)
+            size = -(-len(idx) // draws)  # draws of equal size: one texture and target for all
+            for a in range(0, len(idx), size):
+                draw_group(warper, prog, stack, blocks, idx[a:a + size], out, mode, packs, own, size)
     finally:
         warper.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
         if caller is not None:
@@ -118,18 +120,19 @@ def set_sampling_values(prog, stack, output_shape, cval, own):
     set_uniform(prog, "fpw_batch_step", 1 if own else 0)
 
 
-def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own):
-    """One instanced draw: images ``idx`` of ``stack`` into ``out[idx]``
-    (several draws only where the output is wider than the size limit)."""
+def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own, size):
+    """One instanced draw: images ``idx`` of ``stack`` into ``out[idx]``,
+    in a texture array and a target for ``size`` images (several draws
+    only where the output is wider than the size limit)."""
     _, h, w, c = stack.shape
     m, (oh, ow) = len(idx), out.shape[1:3]
     targets = warper.targets
-    layers = targets.cached("batch_src", (w, h, m, c, stack.dtype),
-                            lambda: warper.ctx.texture_array((w, h, m), c, dtype=SOURCE_TEXTURE_DTYPES[stack.dtype]))
+    layers = targets.cached("batch_src", (w, h, size, c, stack.dtype), lambda: warper.ctx.texture_array(
+        (w, h, size), c, dtype=SOURCE_TEXTURE_DTYPES[stack.dtype]))
     layers.filter = (moderngl.NEAREST, moderngl.NEAREST)
     layers.repeat_x = layers.repeat_y = mode == "wrap"  # where textureGather places the taps
     contiguous = idx[-1] - idx[0] == m - 1
-    layers.write(stack[idx[0]:idx[0] + m] if contiguous else stack[idx])
+    layers.write(stack[idx[0]:idx[0] + m] if contiguous else stack[idx], viewport=(0, 0, 0, w, h, m))
     mine = [blocks[i] for i in idx] if own else blocks[:1]
     stacked = np.zeros((len(mine), MAX_ROWS, 4), np.float32)
     for j, b in enumerate(mine):
@@ -146,7 +149,8 @@ def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own):
     def draw():
         vao.render(moderngl.TRIANGLES, vertices=6, instances=m)
 
+    full = (min(ow, warper.max_size), size * oh)
     for x0, x1 in tiles(ow, warper.max_size):
-        warper.draw_tile(stack[0], atlas, prog, draw, (x0, 0, x1, m * oh), packs)
+        warper.draw_tile(stack[0], atlas, prog, draw, (x0, 0, x1, m * oh), packs, full)
     if not contiguous:
         out[idx] = tall

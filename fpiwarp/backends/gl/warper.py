@@ -349,10 +349,11 @@ class GLWarper:
         key, _, packs = self._program_keys(image, order, mode, None, False, False, stages, antialias)
         return key, packs
 
-    def draw_tile(self, image, out, prog, draw, box, packs=False):
+    def draw_tile(self, image, out, prog, draw, box, packs=False, full=None):
         """Render output pixels box = (x0, y0, x1, y1) of ``out`` by ``draw``
-        (the warp program ``prog``) and read them back (see :meth:`warp_block`)."""
-        self._draw_tile(image, out, (prog, None), draw, box, packs)
+        (the warp program ``prog``) and read them back (see :meth:`warp_block`),
+        in targets of (w, h) = ``full`` (default: ``out``'s, up to the size limit)."""
+        self._draw_tile(image, out, (prog, None), draw, box, packs, full)
 
     def _upload_source(self, prog, image, hw, order, mode, cval):
         h, w, c = image.shape
@@ -375,14 +376,15 @@ class GLWarper:
         tex.write(image)
         return tex
 
-    def _draw_tile(self, image, out, progs, draw, box, packs=False):
+    def _draw_tile(self, image, out, progs, draw, box, packs=False, full=None):
         """Render output pixels box = (x0, y0, x1, y1) and read them back.
         ``progs``: (the warp or mesh program, the mesh's fill pass or None);
         ``packs``: the warp program writes packed RGB32UI texels."""
         x0, y0, x1, y1 = box
         c = image.shape[2]
         size = (x1 - x0, y1 - y0)
-        full = (min(out.shape[1], self.max_size), min(out.shape[0], self.max_size))
+        if full is None:
+            full = (min(out.shape[1], self.max_size), min(out.shape[0], self.max_size))
         dest = out[y0:y1, x0:x1]
         self.set_view(progs, (x0, y0), size)
         if packs:
