@@ -98,6 +98,7 @@ def test_image_by_image_fallbacks(warper, rng, monkeypatch, case):
 
 
 def test_the_callers_framebuffer_stays_bound(warper, rng):
+    from fpiwarp.backends.gl import batch
     from fpiwarp.backends.gl.context import bound_framebuffer
 
     w = warper()
@@ -107,6 +108,10 @@ def test_the_callers_framebuffer_stays_bound(warper, rng):
         stack = rng.integers(0, 256, size=(2, 5, 6, 3), dtype=np.uint8)
         run(w, stack, [make_map("fpi", 0, 8, 8)], (5, 6), order=1, mode="edge", cval=np.zeros(3))
         assert bound_framebuffer(w.ctx).glo == fbo.glo
+        w.targets.dummy.use()  # one of the warper's own: never a cached target after the batch
+        batch.warp_batch(w, stack, [make_map("fpi", 0, 8, 8).inverse.params()], (5, 6), order=1, mode="edge",
+                         cval=np.zeros(3))
+        assert bound_framebuffer(w.ctx) is w.targets.dummy
     finally:
         w.ctx.detect_framebuffer(0).use()
         fbo.release()

@@ -86,8 +86,8 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
                                            antialias=antialias) for i in range(n)])
     out = np.empty((n, oh, ow, c), dtype=stack.dtype)
     caller = bound_framebuffer(warper.ctx)
-    if warper.targets.owns(caller):
-        caller = None
+    if warper.targets.owns(caller):  # never leave a cached target bound (see GLWarper)
+        caller = warper.targets.dummy
     try:
         per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize)
         for stages, short, idx, own in kind_groups(blocks, n, warper.specialize):
@@ -104,8 +104,7 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
                 draw_group(warper, prog, stack, blocks, idx[a:a + size], out, mode, packs, own, size)
     finally:
         warper.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
-        if caller is not None:
-            caller.use()
+        caller.use()
     return out
 
 
