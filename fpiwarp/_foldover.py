@@ -8,11 +8,17 @@ J is sampled on a GRID × GRID grid over the quad's bounding box (the
 points inside the quad), at EDGE_POINTS points along each edge, where
 folds usually start (the spline is pinned along the constrained edges and
 free across the others), denser towards the corners, and on small fans
-around each corner, where the smallest folds sit (next to reflex corners). J is smooth (the spline's second derivatives
-grow only like log of the distance to a center); a sample with J below
-FOLD_MARGIN of the median counts as a fold. Measured with
-``tests/fold_fuzz.py``: this finds every fold that a 200 × 200 grid with
-1000 points per edge finds.
+around each corner, where the smallest folds sit (next to reflex corners).
+The samples of least J then get a local refinement (REFINE_LEVELS passes
+of small grids around the REFINE samples of least J, each a third as wide
+as the one before): some folds sit between the grid points about a tenth
+of the quad's radius from a corner, where the samples next to them show a
+small but positive J. J is smooth (the spline's second derivatives grow
+only like log of the distance to a center); a sample with J below
+FOLD_MARGIN of the median (over the samples before refinement) counts as
+a fold. Measured with ``tests/fold_fuzz.py`` and a random search of 2,500
+configurations of the default fit: no accepted fit folds on a 200 × 200
+grid with 1000 points per edge (2 of 2,044 did without the refinement).
 """
 
 import numpy as np
@@ -32,6 +38,14 @@ FOLD_MARGIN = 0.01
 #: corner: folds of the spline can be as small as 1% of the quad next to a
 #: reflex corner (measured), finer than the grid.
 CORNER_FAN = np.outer([0.003, 0.01, 0.03], np.exp(2j * np.pi * np.arange(16) / 16)).ravel()
+#: Local refinement: around each of the REFINE samples of least J (at
+#: least a grid cell apart) a REFINE_GRID × REFINE_GRID grid one grid cell
+#: wide either side, REFINE_LEVELS times, each time a third as wide around
+#: the new least samples: at most REFINE_LEVELS · REFINE · REFINE_GRID²
+#: more samples, whatever the map.
+REFINE = 6
+REFINE_GRID = 7
+REFINE_LEVELS = 2
 
 
 def inside_quad(z, p):
@@ -62,18 +76,51 @@ def roi_samples(z, grid=GRID, edge_points=EDGE_POINTS):
     return np.concatenate([p[inside_quad(z, p)], *edges, fans[inside_quad(z, fans)]])
 
 
+def _jacobian(f, p):
+    _, fz, fzb = f.wirtinger(p)
+    return np.abs(fz) ** 2 - np.abs(fzb) ** 2
+
+
+def _least(p, jac, n, apart):
+    """Up to n of the points p of least jac, each at least ``apart`` from
+    those before it."""
+    kept = []
+    for k in np.argsort(jac)[: 64 * n]:
+        if all(abs(p[k] - q) >= apart for q in kept):
+            kept.append(p[k])
+            if len(kept) == n:
+                break
+    return np.array(kept, dtype=complex)
+
+
+def refine(f, z, p, jac, cell, levels=REFINE_LEVELS):
+    """The samples p (with Jacobian jac) and, around those of least J, finer
+    grids inside the quad z, ``levels`` times (see REFINE); ``cell`` is the
+    width of the first grid's cells."""
+    steps = np.linspace(-1.0, 1.0, REFINE_GRID)
+    offsets = (steps[None, :] + 1j * steps[:, None]).ravel()
+    for _ in range(levels):
+        q = (_least(p, jac, REFINE, cell)[:, None] + cell * offsets[None, :]).ravel()
+        q = q[inside_quad(z, q)]
+        p, jac = np.concatenate([p, q]), np.concatenate([jac, _jacobian(f, q)])
+        cell /= 3
+    return p, jac
+
+
 def worst_fold(f, z, margin=FOLD_MARGIN, **kw):
     """(point, J/J_typical) where the map f folds over quad z worst, or None.
 
     J is compared with its median over the samples (J_typical), so the
     second value says how strongly orientation is reversed relative to the
     map's usual area scale; a sample with J <= margin J_typical counts (a
-    fold between samples shows as a near-zero J at its neighbours)."""
+    fold between samples shows as a near-zero J at its neighbours). The
+    samples of least J are refined locally (see REFINE) before the test."""
     p = roi_samples(z, **kw)
-    _, fz, fzb = f.wirtinger(p)
-    jac = np.abs(fz) ** 2 - np.abs(fzb) ** 2
-    k = int(np.argmin(jac))
+    jac = _jacobian(f, p)
     typical = float(np.median(np.abs(jac)))
+    span = max(np.ptp(z.real), np.ptp(z.imag))
+    p, jac = refine(f, z, p, jac, span / (kw.get("grid", GRID) - 1))
+    k = int(np.argmin(jac))
     if jac[k] > margin * typical:
         return None
     return complex(p[k]), float(jac[k] / typical)
