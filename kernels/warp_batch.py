@@ -1,13 +1,16 @@
-"""NVIDIA Warp kernels for batches: many images (point sets) per launch.
+"""NVIDIA Warp generic kernels for batches: antialiased images and point
+sets, many per launch.
 
-Each kernel runs the single image's per-pixel function of
-:mod:`fpiwarp.kernels.warp_map` (:mod:`fpiwarp.kernels.warp_antialias`)
-on image n of an (N, H, W, C) stack with block ``which[n]`` of stacked
+Each kernel runs the single call's generic per-pixel (per-point) function
+of :mod:`fpiwarp.kernels.warp_antialias` (:mod:`fpiwarp.kernels.warp_map`)
+on image (point set) n of a stack with block ``which[n]`` of stacked
 parameter blocks, so a batch equals the loop bit for bit. The launch is
 over (N·rows, cols), image n owning rows [n·oh, (n + 1)·oh), so that the
-backend's bands of rows split a batch like one tall image. The Warp
-kernels read each stage's kind from its header at run time, so maps of
-every kind share one launch.
+backend's bands of rows split a batch like one tall image. These kernels
+read each stage's kind from its header at run time, so maps of every kind
+share one launch. Plain (not antialiased) image batches run the kernels
+specialized per kind of map instead, as single images do
+(:func:`fpiwarp.kernels.warp_kinds.batch_kernel`).
 """
 
 from typing import Any
@@ -15,63 +18,9 @@ from typing import Any
 import warp as wp
 
 from .warp_antialias import pixel_antialias
-from .warp_map import evaluate, pixel_cubic, pixel_linear, pixel_nearest
+from .warp_map import evaluate
 
 wp.set_module_options({"enable_backward": False})
-
-
-@wp.kernel
-def batch_nearest(
-    blks: wp.array2d(dtype=wp.vec4),
-    which: wp.array(dtype=int),
-    img: wp.array4d(dtype=Any),
-    out: wp.array4d(dtype=Any),
-    mode: int,
-    cval: wp.vec4,
-    top: float,
-    row0: int,
-):
-    """Order 0 on image n = row // oh."""
-    r, x = wp.tid()
-    r = r + row0
-    n = r // out.shape[1]
-    pixel_nearest(blks[which[n]], img[n], out[n], r - n * out.shape[1], x, mode, cval, top)
-
-
-@wp.kernel
-def batch_linear(
-    blks: wp.array2d(dtype=wp.vec4),
-    which: wp.array(dtype=int),
-    img: wp.array4d(dtype=Any),
-    out: wp.array4d(dtype=Any),
-    mode: int,
-    cval: wp.vec4,
-    top: float,
-    row0: int,
-):
-    """Order 1 on image n = row // oh."""
-    r, x = wp.tid()
-    r = r + row0
-    n = r // out.shape[1]
-    pixel_linear(blks[which[n]], img[n], out[n], r - n * out.shape[1], x, mode, cval, top)
-
-
-@wp.kernel
-def batch_cubic(
-    blks: wp.array2d(dtype=wp.vec4),
-    which: wp.array(dtype=int),
-    img: wp.array4d(dtype=Any),
-    out: wp.array4d(dtype=Any),
-    mode: int,
-    cval: wp.vec4,
-    top: float,
-    row0: int,
-):
-    """Order 3 on image n = row // oh."""
-    r, x = wp.tid()
-    r = r + row0
-    n = r // out.shape[1]
-    pixel_cubic(blks[which[n]], img[n], out[n], r - n * out.shape[1], x, mode, cval, top)
 
 
 @wp.kernel
@@ -110,10 +59,6 @@ def batch_map_points(
     out[n, j] = wp.vec2d(wp.float64(w[0]), wp.float64(w[1]))
 
 
-#: The batch kernels by interpolation order.
-BATCH_KERNELS = {0: batch_nearest, 1: batch_linear, 3: batch_cubic}
-
-for _kernel in (*BATCH_KERNELS.values(), batch_antialias):
-    for _dtype in (wp.uint8, wp.uint16, wp.float32):
-        wp.overload(_kernel, {"img": wp.array4d(dtype=_dtype), "out": wp.array4d(dtype=_dtype)})
-del _kernel, _dtype
+for _dtype in (wp.uint8, wp.uint16, wp.float32):
+    wp.overload(batch_antialias, {"img": wp.array4d(dtype=_dtype), "out": wp.array4d(dtype=_dtype)})
+del _dtype

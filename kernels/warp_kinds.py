@@ -18,7 +18,9 @@ cores, the Möbius parts, the sampling helpers): these kernels only fix
 what is constant for a kind, so they compute what the generic kernels
 compute. Each kernel is a closure in a module of its own
 (``module="unique"``), compiled on first use per kind and cached on disk
-by Warp; :func:`image_kernel` keeps the kernels made in this process.
+by Warp; :func:`image_kernel` (one image) and :func:`batch_kernel` (a
+stack of images, one map each) share the per-pixel function of a kind and
+keep the kernels made in this process.
 """
 
 import threading
@@ -97,7 +99,10 @@ def evaluate_func(key):
     return ev
 
 
-def _make_image_kernel(key, order, channels, mode, dtype):
+def _pixel_func(key, order, channels, mode, dtype):
+    """The per-pixel ``wp.func`` (blk, img, out, y, x, cval) of one kind:
+    output pixel (y, x) of ``out`` sampled from ``img`` through the map
+    of block ``blk``; the single-image and the batch kernels both call it."""
     evaluate = evaluate_func(key)
     T = wp.dtype_from_numpy(dtype)
     C = wp.constant(channels)
@@ -111,16 +116,9 @@ def _make_image_kernel(key, order, channels, mode, dtype):
             v = wp.clamp(wp.floor(v + 0.5), 0.0, TOP)
         out[y, x, c] = T(v)
 
-    @wp.kernel(module="unique")
-    def warp_kind(
-        blk: wp.array(dtype=wp.vec4),
-        img: wp.array3d(dtype=T),
-        out: wp.array3d(dtype=T),
-        cval: wp.vec4,
-        row0: int,
-    ):
-        y, x = wp.tid()
-        y = y + row0
+    @wp.func
+    def pixel(blk: wp.array(dtype=wp.vec4), img: wp.array3d(dtype=T), out: wp.array3d(dtype=T), y: int, x: int,
+              cval: wp.vec4):
         s = evaluate(blk, wp.vec2(float(x), float(y)))
         if not M.in_range(s):
             for c in range(C):
@@ -190,7 +188,57 @@ def _make_image_kernel(key, order, channels, mode, dtype):
                     v = v + wy[j] * acc
                 put(out, y, x, c, v)
 
+    return pixel
+
+
+def _make_image_kernel(key, order, channels, mode, dtype):
+    pixel = _pixel_func(key, order, channels, mode, dtype)
+    T = wp.dtype_from_numpy(dtype)
+
+    @wp.kernel(module="unique")
+    def warp_kind(
+        blk: wp.array(dtype=wp.vec4),
+        img: wp.array3d(dtype=T),
+        out: wp.array3d(dtype=T),
+        cval: wp.vec4,
+        row0: int,
+    ):
+        y, x = wp.tid()
+        pixel(blk, img, out, y + row0, x, cval)
+
     return warp_kind
+
+
+def _make_batch_kernel(key, order, channels, mode, dtype):
+    pixel = _pixel_func(key, order, channels, mode, dtype)
+    T = wp.dtype_from_numpy(dtype)
+
+    @wp.kernel(module="unique")
+    def warp_kind_batch(
+        blks: wp.array2d(dtype=wp.vec4),
+        which: wp.array(dtype=int),
+        images: wp.array(dtype=int),
+        img: wp.array4d(dtype=T),
+        out: wp.array4d(dtype=T),
+        cval: wp.vec4,
+        row0: int,
+    ):
+        r, x = wp.tid()
+        r = r + row0
+        k = r // out.shape[1]
+        n = images[k]
+        pixel(blks[which[k]], img[n], out[n], r - k * out.shape[1], x, cval)
+
+    return warp_kind_batch
+
+
+def _cached(make, key, order, channels, mode, dtype):
+    full = (make.__name__, tuple(key), int(order), int(channels), int(mode), str(dtype))
+    with _lock:
+        kernel = _cache.get(full)
+        if kernel is None:
+            kernel = _cache[full] = make(*full[1:5], dtype)
+    return kernel
 
 
 def image_kernel(key, order, channels, mode, dtype):
@@ -199,9 +247,15 @@ def image_kernel(key, order, channels, mode, dtype):
     of :data:`fpiwarp.block.sampling_rules.MODES`) and a numpy ``dtype``;
     made once per process. Its arguments: (block, image, out, cval vec4,
     first row)."""
-    full = (tuple(key), int(order), int(channels), int(mode), str(dtype))
-    with _lock:
-        kernel = _cache.get(full)
-        if kernel is None:
-            kernel = _cache[full] = _make_image_kernel(*full[:4], dtype)
-    return kernel
+    return _cached(_make_image_kernel, key, order, channels, mode, dtype)
+
+
+def batch_kernel(key, order, channels, mode, dtype):
+    """The batch kernel of the same kind (see :func:`image_kernel`): the
+    same per-pixel function on a stack, made once per process. Its
+    arguments: (blocks (B, rows) vec4, which (K,) int, images (K,) int,
+    stack (N, H, W, C), out (N, oh, ow, C), cval vec4, first row); launched
+    over (K·oh, ow), rows [k·oh, (k + 1)·oh) are output image ``images[k]``
+    warped by block ``which[k]``, so that bands of rows split a batch like
+    one tall image."""
+    return _cached(_make_batch_kernel, key, order, channels, mode, dtype)

@@ -1,12 +1,17 @@
 """Batches on the ``"warp"`` backend: many images (point sets) per launch.
 
-The kernels of :mod:`fpiwarp.kernels.warp_batch` run the single image's
-per-pixel code on image n of a stack with its own parameter block, read
-from the N blocks stacked in one (N, rows, 4) array (rows: the longest
+Plain image batches run the kernels specialized per kind of map that
+single images run (:func:`fpiwarp.kernels.warp_kinds.batch_kernel`, the
+same per-pixel function): the maps are grouped by kind of block (each
+stage's core and regions, as the opencl backend groups them) and each
+group is one launch over its images, reading block ``which[k]`` of the
+group's blocks stacked in one (B, rows, 4) array (rows: the longest
 block's; one map for all images is one block that every image reads).
-Warp's kernels read the kind of each map at run time, so a batch of any
-mix of kinds is one launch (on the CPU device split, like one tall image,
-into one band of rows per thread).
+N maps of one kind are one launch; k kinds are k launches. Antialiased
+batches and point sets run the generic kernels of
+:mod:`fpiwarp.kernels.warp_batch` (as single calls do), one launch for any
+mix of kinds. On the CPU device every launch is split, like one tall
+image, into one band of rows per thread of the backend's pool.
 
 Bounds: a launch covers at most :data:`CHUNK_BYTES` of input plus output
 (at least one image): larger batches are several launches, never refused.
@@ -32,6 +37,30 @@ def stacked_blocks(transforms):
     blocks = [np.asarray(t.params(), dtype=np.float32) for t in transforms]
     for block in blocks:
         describe(block)
+    return _padded(blocks)
+
+
+def kind_groups(transforms, n):
+    """The maps of a batch of ``n`` images grouped by kind of block: a list
+    of (kind key (each stage's core and regions, as
+    :func:`fpiwarp.kernels.warp_kinds.kind_key`), blocks (B, rows, 4)
+    float32 padded to the longest, which (K,) int32: each image's block,
+    images (K,) int32: the group's images). One map gives one group of all
+    ``n`` images reading one block. A block no kernel knows raises
+    ValueError (:func:`describe`) first."""
+    blocks = [np.ascontiguousarray(t.params(), dtype=np.float32) for t in transforms]
+    keys = [tuple((s.core, s.n_regions) for s in describe(b).stages) for b in blocks]
+    if len(blocks) == 1:
+        return [(keys[0], blocks[0][None], np.zeros(n, dtype=np.int32), np.arange(n, dtype=np.int32))]
+    groups = {}
+    for i, key in enumerate(keys):
+        groups.setdefault(key, []).append(i)
+    return [(key, _padded([blocks[i] for i in idx]), np.arange(len(idx), dtype=np.int32),
+             np.asarray(idx, dtype=np.int32)) for key, idx in groups.items()]
+
+
+def _padded(blocks):
+    """(B, rows, 4) float32: ``blocks`` padded with zero rows to the longest."""
     rows = max(b.shape[0] for b in blocks)
     out = np.zeros((len(blocks), rows, 4), dtype=np.float32)
     for i, block in enumerate(blocks):
@@ -69,23 +98,47 @@ class BatchRunner:
         n, _, _, c = stack.shape
         oh, ow = output_shape
         out = np.empty((n, oh, ow, c), dtype=stack.dtype)
-        scalar = wp.dtype_from_numpy(stack.dtype)
         cv = np.zeros(4, dtype=np.float32)
         cv[:c] = cval
-        tail = [MODES.index(mode), wp.vec4(*cv.tolist()), _TOP[stack.dtype]]
-        kernel = self.k.BATCH_KERNELS[order]
         if antialias:
-            kernel, tail = self.k.batch_antialias, [int(order), *tail]
+            self._antialias(stack, transforms, out, order, MODES.index(mode), wp.vec4(*cv.tolist()))
+            return out
+        from fpiwarp.kernels import warp_kinds  # noqa: PLC0415 - Warp imported with the backend
+
+        scalar = wp.dtype_from_numpy(stack.dtype)
+        whole = (self._array(stack, scalar), self._array(out, scalar)) if self.on_cpu else None
+        for key, blocks, which, images in kind_groups([t.inverse for t in transforms], n):
+            kernel = warp_kinds.batch_kernel(key, order, c, MODES.index(mode), stack.dtype)
+            blks = self._array(blocks, wp.vec4)
+            for a, b in _ranges(len(images), stack[0].nbytes + out[0].nbytes):
+                idx = images[a:b]
+                if self.on_cpu:
+                    src, dst = whole
+                else:  # this chunk's images copied in, numbered 0..b-a
+                    src = self._array(stack[idx], scalar)
+                    dst = wp.empty((b - a, oh, ow, c), scalar, self.device)
+                    idx = np.arange(b - a, dtype=np.int32)
+                inputs = [blks, self._array(which[a:b], wp.int32), self._array(idx, wp.int32), src, dst,
+                          wp.vec4(*cv.tolist())]
+                self.launch(kernel, (b - a) * oh, ow, inputs)
+                if not self.on_cpu:
+                    out[images[a:b]] = dst.numpy()
+        return out
+
+    def _antialias(self, stack, transforms, out, order, mode, cval):
+        """The antialiased batch (generic kernel, as the single image's) into ``out``."""
+        wp = self.wp
+        n, oh, ow, _ = out.shape
+        scalar = wp.dtype_from_numpy(stack.dtype)
+        tail = [int(order), mode, cval, _TOP[stack.dtype]]
         blocks = stacked_blocks([t.inverse for t in transforms])
         blks = self._array(blocks, wp.vec4)
         for a, b in _ranges(n, stack[0].nbytes + out[0].nbytes):
             src = self._array(stack[a:b], scalar)
             dst = self._array(out[a:b], scalar) if self.on_cpu else wp.empty(out[a:b].shape, scalar, self.device)
-            which = self._which(blocks, a, b)
-            self.launch(kernel, (b - a) * oh, ow, [blks, which, src, dst, *tail])
+            self.launch(self.k.batch_antialias, (b - a) * oh, ow, [blks, self._which(blocks, a, b), src, dst, *tail])
             if not self.on_cpu:
                 out[a:b] = dst.numpy()
-        return out
 
     def map_points_batch(self, transforms, points):
         """float64 (N, P, 2) point sets mapped by one map or one each."""
