@@ -120,6 +120,40 @@ def test_warp_batch_splits_large_batches(warp_backend, rng, monkeypatch):
                                   loop(stack, maps, "warp", {"order": 3}))
 
 
+@pytest.mark.parametrize("order", [0, 1, 3])
+@pytest.mark.parametrize("mode", ["constant", "edge", "reflect", "wrap"])
+def test_warp_batch_of_several_kinds_equals_the_loop(warp_backend, rng, monkeypatch, order, mode):
+    """Maps of three kinds in one batch (fpi and shift of one kind, not adjacent):
+    one launch per kind of the per-kind kernels, the loop's result bit for
+    bit in every order and mode."""
+    stack = rng.integers(0, 256, size=(4, 12, 15, 3), dtype=np.uint8)
+    maps = [make_map(kind, k, 15, 12) for k, kind in enumerate(["fpi", "tps_inverse", "compound", "shift"])]
+    runner = get_backend("warp").batches()
+    launches = []
+    real = runner.launch
+    monkeypatch.setattr(runner, "launch", lambda kernel, *args: launches.append(kernel) or real(kernel, *args))
+    options = {"order": order, "mode": mode, "cval": 9, "output_shape": (13, 14)}
+    got = fpiwarp.warp_batch(stack, maps, backend="warp", **options)
+    assert len(launches) == len(set(launches)) == 3
+    np.testing.assert_array_equal(got, loop(stack, maps, "warp", options))
+
+
+def test_warp_groups_maps_by_kind():
+    from fpiwarp.backends.warp_batches import kind_groups
+
+    maps = [make_map(kind, k, 9, 9) for k, kind in enumerate(["fpi", "tps", "shift", "compound", "tps"])]
+    groups = kind_groups(maps, len(maps))
+    assert sorted(g[3].tolist() for g in groups) == [[0, 2], [1, 4], [3]]
+    for key, blocks, which, images in groups:
+        assert len({key}) == 1 and blocks.dtype == np.float32 and len(blocks) == len(images)
+        for w, i in zip(which, images):
+            params = np.asarray(maps[i].params(), dtype=np.float32)
+            np.testing.assert_array_equal(blocks[w, : len(params)], params)
+            assert not blocks[w, len(params):].any()
+    ((_, blocks, which, images),) = kind_groups(maps[1:2], 6)
+    assert len(blocks) == 1 and which.tolist() == [0] * 6 and images.tolist() == list(range(6))
+
+
 @pytest.mark.parametrize("backend", BATCHING)
 @settings(max_examples=15, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(n=st.integers(1, 4), shape=st.sampled_from([(0,), (1,), (7,), (3, 5)]), one=st.booleans(),
