@@ -34,7 +34,7 @@ FRAME_BACKENDS = ("opencl", "warp", "gl")
 HOW = {
     "numpy": "one call, each image sampled in turn",
     "opencl": "one launch per kind of map",
-    "warp": "one launch (generic kernel; the loop runs per-kind ones)",
+    "warp": "one launch per kind of map (the per-kind kernels, as the loop)",
     "gl": "one instanced draw per kind of map",
 }
 

@@ -13,7 +13,7 @@ output size and shares it among the images of that size. A backend whose
 capabilities say ``batches`` warps a whole stack in one call
 (``warp_batch``): "numpy" (one map: one pass for all images), "opencl"
 (one kernel launch per kind of map, :mod:`fpiwarp.backends.opencl_batch`),
-"warp" (one launch, :mod:`fpiwarp.backends.warp_batches`) and "gl" (one
+"warp" (likewise, :mod:`fpiwarp.backends.warp_batches`) and "gl" (one
 instanced draw per kind of map, :mod:`fpiwarp.backends.gl.batch`); a
 backend that does not batch gets one ``warp_image`` call per image.
 Either way the result equals the loop of :func:`fpiwarp.warp_image` bit
