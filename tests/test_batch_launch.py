@@ -140,18 +140,20 @@ def test_warp_batch_of_several_kinds_equals_the_loop(warp_backend, rng, monkeypa
 
 def test_warp_groups_maps_by_kind():
     from fpiwarp.backends.warp_batches import kind_groups
+    from fpiwarp.block import describe
 
     maps = [make_map(kind, k, 9, 9) for k, kind in enumerate(["fpi", "tps", "shift", "compound", "tps"])]
     groups = kind_groups(maps, len(maps))
-    assert sorted(g[3].tolist() for g in groups) == [[0, 2], [1, 4], [3]]
-    for key, blocks, which, images in groups:
-        assert len({key}) == 1 and blocks.dtype == np.float32 and len(blocks) == len(images)
-        for w, i in zip(which, images):
+    assert sorted(g[2].tolist() for g in groups) == [[0, 2], [1, 4], [3]]
+    for key, blocks, images in groups:
+        assert key == tuple((s.core, s.n_regions) for s in describe(maps[images[0]].params()).stages)
+        assert blocks.dtype == np.float32 and len(blocks) == len(images)
+        for block, i in zip(blocks, images):
             params = np.asarray(maps[i].params(), dtype=np.float32)
-            np.testing.assert_array_equal(blocks[w, : len(params)], params)
-            assert not blocks[w, len(params):].any()
-    ((_, blocks, which, images),) = kind_groups(maps[1:2], 6)
-    assert len(blocks) == 1 and which.tolist() == [0] * 6 and images.tolist() == list(range(6))
+            np.testing.assert_array_equal(block[: len(params)], params)
+            assert not block[len(params):].any()
+    ((_, blocks, images),) = kind_groups(maps[1:2], 6)
+    assert len(blocks) == 1 and images.tolist() == list(range(6))
 
 
 @pytest.mark.parametrize("backend", BATCHING)

@@ -44,19 +44,18 @@ def kind_groups(transforms, n):
     """The maps of a batch of ``n`` images grouped by kind of block: a list
     of (kind key (each stage's core and regions, as
     :func:`fpiwarp.kernels.warp_kinds.kind_key`), blocks (B, rows, 4)
-    float32 padded to the longest, which (K,) int32: each image's block,
-    images (K,) int32: the group's images). One map gives one group of all
-    ``n`` images reading one block. A block no kernel knows raises
+    float32 padded to the longest, images (K,) int32: the group's images,
+    image ``images[k]`` warped by block k, or block 0 where B is 1). One
+    map gives one group of all ``n`` images reading one block. A block no kernel knows raises
     ValueError (:func:`describe`) first."""
     blocks = [np.ascontiguousarray(t.params(), dtype=np.float32) for t in transforms]
     keys = [tuple((s.core, s.n_regions) for s in describe(b).stages) for b in blocks]
     if len(blocks) == 1:
-        return [(keys[0], blocks[0][None], np.zeros(n, dtype=np.int32), np.arange(n, dtype=np.int32))]
+        return [(keys[0], blocks[0][None], np.arange(n, dtype=np.int32))]
     groups = {}
     for i, key in enumerate(keys):
         groups.setdefault(key, []).append(i)
-    return [(key, _padded([blocks[i] for i in idx]), np.arange(len(idx), dtype=np.int32),
-             np.asarray(idx, dtype=np.int32)) for key, idx in groups.items()]
+    return [(key, _padded([blocks[i] for i in idx]), np.asarray(idx, dtype=np.int32)) for key, idx in groups.items()]
 
 
 def _padded(blocks):
@@ -95,7 +94,7 @@ class BatchRunner:
         """(N, rows, cols, C) from a validated (N, H, W, C) stack and one
         map or one map per image."""
         wp = self.wp
-        n, _, _, c = stack.shape
+        n, h, w, c = stack.shape
         oh, ow = output_shape
         out = np.empty((n, oh, ow, c), dtype=stack.dtype)
         cv = np.zeros(4, dtype=np.float32)
@@ -106,23 +105,25 @@ class BatchRunner:
         from fpiwarp.kernels import warp_kinds  # noqa: PLC0415 - Warp imported with the backend
 
         scalar = wp.dtype_from_numpy(stack.dtype)
-        whole = (self._array(stack, scalar), self._array(out, scalar)) if self.on_cpu else None
-        for key, blocks, which, images in kind_groups([t.inverse for t in transforms], n):
+        # images are row offsets into (N·H, W, C) arrays (see warp_kinds.batch_kernel)
+        whole = (self._array(stack.reshape(n * h, w, c), scalar), self._array(out.reshape(n * oh, ow, c), scalar))\
+            if self.on_cpu else None
+        for key, blocks, images in kind_groups([t.inverse for t in transforms], n):
             kernel = warp_kinds.batch_kernel(key, order, c, MODES.index(mode), stack.dtype)
-            blks = self._array(blocks, wp.vec4)
+            step = int(len(blocks) > 1)
             for a, b in _ranges(len(images), stack[0].nbytes + out[0].nbytes):
+                blks = self._array(blocks[a * step: b * step + 1 - step], wp.vec4)
                 idx = images[a:b]
                 if self.on_cpu:
                     src, dst = whole
                 else:  # this chunk's images copied in, numbered 0..b-a
-                    src = self._array(stack[idx], scalar)
-                    dst = wp.empty((b - a, oh, ow, c), scalar, self.device)
+                    src = self._array(stack[idx].reshape((b - a) * h, w, c), scalar)
+                    dst = wp.empty(((b - a) * oh, ow, c), scalar, self.device)
                     idx = np.arange(b - a, dtype=np.int32)
-                inputs = [blks, self._array(which[a:b], wp.int32), self._array(idx, wp.int32), src, dst,
-                          wp.vec4(*cv.tolist())]
+                inputs = [blks, self._array(idx, wp.int32), src, dst, h, oh, step, wp.vec4(*cv.tolist())]
                 self.launch(kernel, (b - a) * oh, ow, inputs)
                 if not self.on_cpu:
-                    out[images[a:b]] = dst.numpy()
+                    out[images[a:b]] = dst.numpy().reshape(b - a, oh, ow, c)
         return out
 
     def _antialias(self, stack, transforms, out, order, mode, cval):
