@@ -104,8 +104,8 @@ def _pixel_func(key, order, channels, mode, dtype):
     of one kind: output pixel (y, x) (at row dst0 + y of ``out``) sampled
     through the map of block ``blk`` from the image of ``h`` rows starting
     at row src0 of ``img``; the single-image and the batch kernels both
-    call it. Images of a batch are row offsets into (N·H, W, C) arrays, not
-    sub-array views, which cost ~20 % per pixel on Warp's CPU device."""
+    call it. Images of a batch are row offsets into (N·H, W, C) arrays
+    (no sub-array view per pixel)."""
     evaluate = evaluate_func(key)
     T = wp.dtype_from_numpy(dtype)
     C = wp.constant(channels)
