@@ -146,10 +146,9 @@ def _pixel_func(key, order, channels, mode, dtype):
             ty = sy - fy
             x0 = int(fx)
             y0 = int(fy)
-            c0 = M.border_index(x0, w, MODE)
-            c1 = M.border_index(x0 + 1, w, MODE)
-            r0 = src0 + M.border_index(y0, h, MODE)
-            r1 = src0 + M.border_index(y0 + 1, h, MODE)
+            c0, c1, r0, r1 = M.bilinear_indices(x0, y0, w, h, MODE)
+            r0 = src0 + r0
+            r1 = src0 + r1
             in00 = M.inside(y0, h, MODE) and M.inside(x0, w, MODE)
             in01 = M.inside(y0, h, MODE) and M.inside(x0 + 1, w, MODE)
             in10 = M.inside(y0 + 1, h, MODE) and M.inside(x0, w, MODE)
