@@ -37,6 +37,7 @@ from .._errors import SizeLimitError
 from ..block import describe
 from ..block.codegen import opencl_preamble
 from ..block.sampling_rules import MODES
+from .lru import LruCache
 from .opencl_prepared import IMAGE_SLACK, ZERO_COPY_MIN_BYTES, BoundMap, JobCache
 
 ENV_DEVICE = "FPIWARP_OPENCL_DEVICE"
@@ -202,7 +203,7 @@ class Backend:
         self._kernels = {}  # build options -> {kernel name: Kernel}
         self._buffers = {}  # (role, nbytes) -> Buffer
         self._block_cache = None  # (block bytes, its buffer, kind options) of the last upload
-        self._kinds = {}  # block bytes -> kind options, of recent blocks
+        self._kinds = LruCache(16)  # block bytes -> kind options, of recent blocks
         self._jobs = JobCache()  # prepared jobs of plain warp_image calls
         self._lock = threading.Lock()
 
@@ -318,14 +319,7 @@ class Backend:
     def block_kind(self, block):
         """The kind options of float32 ``block``, remembered by its bytes for
         the last few blocks; ValueError for a block no kernel knows."""
-        data = block.tobytes()
-        options = self._kinds.get(data)
-        if options is None:
-            options = kind_options(describe(block))
-            if len(self._kinds) >= 16:
-                self._kinds.pop(next(iter(self._kinds)))
-            self._kinds[data] = options
-        return options
+        return self._kinds.lookup(block.tobytes(), lambda: kind_options(describe(block)))
 
     def image_program(self, dtype, channels, order, mode, width, antialias, kind):
         """(kernel name, build options, work-group width) of warp_image for
