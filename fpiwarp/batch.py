@@ -112,25 +112,43 @@ def warp_batch(
     order: int = 1,
     mode: str = "constant",
     cval: float | Sequence[float] = 0,
-    backend: str = "numpy",
+    backend: str | None = None,
     antialias: bool = False,
-) -> np.ndarray:
+    out: object | None = None,
+    channels: str = "last",
+) -> object:
     """Warp a stack of same-size images, with one map for all or one each.
 
     Parameters
     ----------
     images : array_like, shape (N, H, W) or (N, H, W, C)
-        N images of one size, uint8, uint16 or float32.
+        N images of one size, uint8, uint16 or float32: a numpy array, or
+        a stack on a device as :func:`fpiwarp.warp_image` takes images
+        (a Warp, DLPack or CUDA array: torch, CuPy, JAX; a
+        ``pyopencl.array.Array``), warped where it lives without a host
+        copy, in one launch per kind of map (:mod:`fpiwarp.arrays`).
     transforms : Transform or sequence of Transform
         One map for all images, or N maps, one per image (source to output
         coordinates, x = column, y = row).
-    output_shape, order, mode, cval, backend, antialias
+    output_shape, order, mode, cval, antialias
         As in :func:`fpiwarp.warp_image`.
+    backend : str or None, optional
+        As in :func:`fpiwarp.warp_image`; None (default) follows the data
+        (numpy for numpy stacks, "warp" for Warp/DLPack/CUDA arrays,
+        "opencl" for pyopencl arrays).
+    out : array, optional
+        An array of the result's shape and dtype, of the input's kind and
+        device, written in place and returned (numpy: one host copy).
+    channels : {"last", "first"}, optional
+        "first" reads 4-D stacks as (N, C, H, W) (torch's layout) and
+        returns that layout; on "warp" it is a strided view (zero-copy),
+        on "opencl" a permute on the device.
 
     Returns
     -------
-    ndarray, shape (N, rows, cols) or (N, rows, cols, C)
-        The warped stack, of the input's dtype, equal bit for bit to the
+    array, shape (N, rows, cols) or (N, rows, cols, C)
+        The warped stack, of the input's dtype and library (on its
+        device), equal bit for bit to the
         loop of :func:`fpiwarp.warp_image` over the images. On a backend
         that batches the stack goes in one call (numpy: one map evaluated
         once for all N images; opencl: one kernel launch per kind of map;
@@ -141,7 +159,9 @@ def warp_batch(
     ------
     ArgumentError
         An empty stack, a shape other than 3-D or 4-D, or a number of maps
-        other than 1 or N; and as :func:`fpiwarp.warp_image`.
+        other than 1 or N; a bad ``out=``; and as :func:`fpiwarp.warp_image`.
+    DeviceMismatchError
+        A stack the backend cannot read in place (a CUDA tensor on "opencl").
 
     Examples
     --------
@@ -152,7 +172,14 @@ def warp_batch(
     >>> fpiwarp.warp_batch(stack, maps).shape
     (3, 4, 5, 3)
     """
-    stack = np.asarray(images) if not isinstance(images, np.ndarray) else images
+    if not isinstance(images, np.ndarray) or out is not None or channels != "last":
+        from .arrays import batch_path  # noqa: PLC0415 - device arrays, out= and layouts
+
+        return batch_path.warp_batch(images, transforms, output_shape, order=order, mode=mode, cval=cval,
+                                     backend=backend, antialias=antialias, out=out, channels=channels,
+                                     host_batch=warp_batch)
+    backend = "numpy" if backend is None else backend
+    stack = images
     if stack.ndim not in (3, 4) or stack.shape[0] == 0:
         raise ArgumentError(f"images must be a non-empty (N, H, W) or (N, H, W, C) array, got shape {stack.shape}")
     first, squeeze = check_image(stack[0], name="images")

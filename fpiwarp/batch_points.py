@@ -14,8 +14,9 @@ __all__ = ["map_points_batch"]
 
 
 def map_points_batch(
-    transforms: Transform | Sequence[Transform], points: ArrayLike, backend: str = "numpy"
-) -> np.ndarray:
+    transforms: Transform | Sequence[Transform], points: ArrayLike, backend: str | None = None, *,
+    out: object | None = None
+) -> object:
     """Map N point sets, ``points[i]`` by ``transforms[i]`` (or all by one map).
 
     On the "opencl" and "warp" backends the whole batch is one kernel
@@ -29,14 +30,23 @@ def map_points_batch(
     transforms : Transform or sequence of Transform
         One map for all sets, or N maps.
     points : array_like, shape (N, ..., 2)
-        N point sets of one shape; the first axis is the batch.
-    backend : str, optional
-        As in :func:`fpiwarp.map_points`; default "numpy".
+        N point sets of one shape; the first axis is the batch. Device
+        arrays are mapped where they live, in one launch per kind of map,
+        as :func:`fpiwarp.map_points` maps them: Warp/DLPack/CUDA arrays
+        of float32 or float64 on "warp", pyopencl arrays of the device's
+        point dtype on "opencl".
+    backend : str or None, optional
+        As in :func:`fpiwarp.map_points`; None (default) follows the data
+        (numpy for numpy arrays).
+    out : array, optional
+        An array like the result (same kind, device, shape, dtype),
+        written in place and returned.
 
     Returns
     -------
-    ndarray, float64, shape (N, ..., 2)
-        The mapped sets.
+    array, shape (N, ..., 2)
+        The mapped sets: float64 numpy for host input; for device arrays
+        an array of their library, dtype and device.
 
     Raises
     ------
@@ -52,6 +62,11 @@ def map_points_batch(
     >>> fpiwarp.map_points_batch(shifts, np.zeros((3, 1, 2))).tolist()
     [[[0.0, 0.0]], [[1.0, 0.0]], [[2.0, 0.0]]]
     """
+    if not isinstance(points, np.ndarray) and not isinstance(points, (list, tuple)) or out is not None:
+        from .arrays import batch_path  # noqa: PLC0415 - device arrays and out=
+
+        return batch_path.map_points_batch(transforms, points, backend, out, map_points_batch)
+    backend = "numpy" if backend is None else backend
     one = isinstance(transforms, Transform)
     maps = [transforms] if one else list(transforms)
     for t in maps:

@@ -236,6 +236,30 @@ def _make_batch_kernel(key, order, channels, mode, dtype):
     return warp_kind_batch
 
 
+def _make_strided_batch_kernel(key, order, channels, mode, dtype):
+    pixel = _pixel_func(key, order, channels, mode, dtype)
+    T = wp.dtype_from_numpy(dtype)
+
+    @wp.kernel(module="unique")
+    def warp_kind_batch_strided(
+        blks: wp.array2d(dtype=wp.vec4),
+        images: wp.array(dtype=int),
+        img: wp.array4d(dtype=T),
+        out: wp.array4d(dtype=T),
+        step: int,
+        cval: wp.vec4,
+        row0: int,
+    ):
+        r, x = wp.tid()
+        r = r + row0
+        oh = out.shape[1]
+        k = r / oh
+        n = images[k]
+        pixel(blks[k * step], img[n], 0, img.shape[1], out[n], 0, r - k * oh, x, cval)
+
+    return warp_kind_batch_strided
+
+
 def _cached(make, key, order, channels, mode, dtype):
     full = (make.__name__, tuple(key), int(order), int(channels), int(mode), str(dtype))
     with _lock:
@@ -264,3 +288,13 @@ def batch_kernel(key, order, channels, mode, dtype):
     bands of rows split a batch like one tall image. (A block index array
     instead of ``step`` cost ~8 % per pixel on Warp's CPU device.)"""
     return _cached(_make_batch_kernel, key, order, channels, mode, dtype)
+
+
+def strided_batch_kernel(key, order, channels, mode, dtype):
+    """The batch kernel of the same kind on (N, H, W, C) stacks of any
+    strides (a channels-first tensor's transposed view, say), whose
+    images cannot be row offsets of one (N·H, W, C) array: image
+    ``images[k]`` is the sub-array view ``img[n]``. Arguments: (blocks,
+    images, stack (N, H, W, C), out (N, oh, ow, C), step, cval vec4,
+    first row); launched over (K·oh, ow) like :func:`batch_kernel`."""
+    return _cached(_make_strided_batch_kernel, key, order, channels, mode, dtype)

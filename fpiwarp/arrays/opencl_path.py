@@ -24,9 +24,9 @@ _permute_kernels = {}  # (context, direction, dtype) -> ElementwiseKernel
 _kept = {}  # (context, role) -> array kept across calls (see kept)
 #: held while a call uses the kept arrays
 lock = threading.Lock()
-_PERMUTE = {
-    "to_last": "dst[i] = src[((i % C) * H + i / (C * W)) * W + (i / C) % W]",   # (C, H, W) -> (H, W, C)
-    "to_first": "dst[i] = src[((i / W) % H * W + i % W) * C + i / (W * H)]",    # (H, W, C) -> (C, H, W)
+_PERMUTE = {  # for N images of (C, H, W) <-> (H, W, C); dst[i] = src[...]
+    "to_last": "dst[i] = src[((i / (C * W * H) * C + i % C) * H + i / (C * W) % H) * W + i / C % W]",
+    "to_first": "dst[i] = src[((i / (W * H * C) * H + i / W % H) * W + i % W) * C + i / (W * H) % C]",
 }
 
 
@@ -59,7 +59,7 @@ def check_array(arr, be, what):
         raise ArgumentError(f"{what} must be a C-contiguous pyopencl array without offset; pass {what}.copy()")
 
 
-def _sync_before(arr, be):
+def sync_before(arr, be):
     """Let the backend's queue see ``arr``'s pending writes (another queue's)."""
     arr.finish()
     if arr.queue is not None and arr.queue != be.queue:
@@ -68,16 +68,17 @@ def _sync_before(arr, be):
 
 def permute(be, arr, to, dst=None):
     """``arr`` with its axes moved (``to``: "to_last" for (C, H, W) ->
-    (H, W, C), "to_first" back), on the device, into ``dst`` or a new
-    array with slack; returns it."""
+    (H, W, C), "to_first" back; an (N, ...) stack image by image), on the
+    device, into ``dst`` or a new array with slack; returns it."""
     from pyopencl.elementwise import ElementwiseKernel  # noqa: PLC0415
 
+    lead = tuple(arr.shape[:-3])
     if to == "to_last":
-        c, h, w = arr.shape
-        shape = (h, w, c)
+        c, h, w = arr.shape[-3:]
+        shape = (*lead, h, w, c)
     else:
-        h, w, c = arr.shape
-        shape = (c, h, w)
+        h, w, c = arr.shape[-3:]
+        shape = (*lead, c, h, w)
     out = with_slack(be, shape, arr.dtype) if dst is None else dst
     key = (be.context.int_ptr, to, arr.dtype)
     kernels = _permute_kernels
@@ -139,7 +140,7 @@ def image_source(image, channels):
 
     be = backend()
     check_array(image, be, "image")
-    _sync_before(image, be)
+    sync_before(image, be)
     shape = tuple(image.shape)
     if image.ndim not in (2, 3):
         raise ArgumentError(f"image must be 2-D or 3-D, got shape {shape}")
@@ -150,12 +151,12 @@ def image_source(image, channels):
     pixel = src.dtype.itemsize * src.shape[2]
     if pixel < 4 and image.base_data.size < image.nbytes + IMAGE_SLACK:  # the sampler would read past the end
         padded = kept(be, "source", src.shape, src.dtype)
-        _copy_device(be, padded, src)
+        copy_device(be, padded, src)
         src = padded
     return be, src, image.dtype, shape
 
 
-def _copy_device(be, dst, src):
+def copy_device(be, dst, src):
     import pyopencl as cl  # noqa: PLC0415
 
     cl.enqueue_copy(be.queue, dst.data, src.data, byte_count=src.nbytes)
@@ -174,7 +175,7 @@ def output_target(be, dtype, shape, out):
     check_array(out, be, "out")
     if tuple(out.shape) != tuple(shape) or out.dtype != dtype:
         raise ArgumentError(f"out= must be {tuple(shape)} {dtype}, got {tuple(out.shape)} {out.dtype}")
-    _sync_before(out, be)
+    sync_before(out, be)
     return out, out
 
 
@@ -198,7 +199,7 @@ def map_points(transform, points, out):
     if points.ndim < 1 or points.shape[-1] != 2 or points.dtype != be.point_dtype:
         raise ArgumentError(f"device points on this OpenCL device must be ({'...'}, 2) {be.point_dtype}, got "
                             f"{tuple(points.shape)} {points.dtype}")
-    _sync_before(points, be)
+    sync_before(points, be)
     result, target = output_target(be, points.dtype, tuple(points.shape), out)
     if shares_buffer(points, target):
         raise ArgumentError("out= shares memory with points; map into another array")

@@ -38,9 +38,10 @@ staging buffers yet: on a GPU the driver stages pageable numpy memory.
 Device arrays
 -------------
 :class:`BatchLaunch` enqueues a batch's kernels on any device buffers
-(the source from image a on, the output likewise), so arrays already on
-the device (e.g. ``pyopencl.array.Array.data``) can be warped without
-a host copy; :func:`warp_batch` is its host-array front end.
+(the source from image a on, the output likewise): :func:`warp_arrays`
+and :func:`map_points_arrays` run them on ``pyopencl.array.Array`` s
+in place (:mod:`fpiwarp.arrays` batches), :func:`warp_batch` is the
+host-array front end.
 """
 
 import weakref
@@ -205,6 +206,19 @@ def warp_batch(backend, stack, transforms, output_shape, *, order, mode, cval, a
     return out
 
 
+def warp_arrays(backend, src, dst, transforms, *, order, mode, cval, antialias=False):
+    """Enqueue the warp of (N, H, W, C) ``pyopencl.array.Array`` ``src``
+    (C-contiguous, ``backend.image_slack`` bytes to spare in its buffer)
+    into (N, rows, cols, C) ``dst`` on the backend's queue, in place: one
+    launch per kind of map, no chunks, no copies. Returns ``dst`` without
+    waiting (takes the backend's lock)."""
+    with backend._lock:
+        job = BatchLaunch(backend, src.shape, src.dtype, transforms, dst.shape[1:3], order=order, mode=mode,
+                          cval=cval, antialias=antialias)
+        job.enqueue(backend.queue, src.data, dst.data, 0, src.shape[0])
+    return dst
+
+
 def _run_zero_copy(cl, backend, stack, out, chunks, launch):
     """Each chunk copied into one device buffer; the kernels write the
     caller's output in place (USE_HOST_PTR), made visible by a map."""
@@ -258,35 +272,48 @@ def map_points_batch(backend, transforms, points):
     if p == 0 or n == 0:
         return out.astype(np.float64)
     groups = block_groups(transforms, n, backend.kind_options)
-    options = backend.point_options + (f"-DFW_LOCAL_X={backend.local_x}", "-DFW_BATCH=1")
     limit = min(CHUNK_BYTES, backend.device.max_mem_alloc_size)
+    mf, ctx = cl.mem_flags, backend.context
     for a, b in chunk_ranges(n, pts[0].nbytes, limit):
-        _map_chunk(cl, backend, groups, options, pts, out, a, b)
-    backend.queue.finish()
+        if backend.zero_copy:
+            src = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pts[a:b])
+            dst = cl.Buffer(ctx, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
+        else:
+            src = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=pts[a:b])
+            dst = cl.Buffer(ctx, mf.WRITE_ONLY, out[a:b].nbytes)
+        keep = _enqueue_points(cl, backend, groups, src, dst, p, a, b)  # noqa: F841 - alive until read
+        if backend.zero_copy:
+            mapped, event = cl.enqueue_map_buffer(backend.queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
+            event.wait()
+            del mapped
+        else:
+            cl.enqueue_copy(backend.queue, out[a:b], dst)
+        backend.queue.finish()
     return out.astype(np.float64, copy=False)
 
 
-def _map_chunk(cl, backend, groups, options, pts, out, a, b):
-    """map_points over point sets [a, b): one launch per kind."""
-    mf, ctx, queue = cl.mem_flags, backend.context, backend.queue
-    p = pts.shape[1]
+def map_points_arrays(backend, transforms, points, out):
+    """Enqueue the map of (N, P, 2) ``pyopencl.array.Array`` ``points``
+    (C-contiguous, the device's point dtype) into ``out`` of the same
+    shape on the backend's queue, in place: one launch per kind of map.
+    Returns ``out`` without waiting (takes the backend's lock)."""
+    n, p, _ = points.shape
+    if n and p:
+        groups = block_groups(transforms, n, backend.kind_options)
+        with backend._lock:
+            _enqueue_points(_cl(), backend, groups, points.data, out.data, p, 0, n)
+    return out
+
+
+def _enqueue_points(cl, backend, groups, src, dst, p, a, b):
+    """Enqueue map_points over point sets [a, b) held in ``src`` from set a
+    on: one launch per kind; returns the launches' small buffers."""
+    options = backend.point_options + (f"-DFW_LOCAL_X={backend.local_x}", "-DFW_BATCH=1")
     total = -(-p // backend.local_x) * backend.local_x
-    if backend.zero_copy:
-        src = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pts[a:b])
-        dst = cl.Buffer(ctx, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
-    else:
-        src = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=pts[a:b])
-        dst = cl.Buffer(ctx, mf.WRITE_ONLY, out[a:b].nbytes)
-    keep = []  # the launches' block and index buffers, alive until the chunk is read
+    keep = []
     for kind, rows, blocks, which in _launches(backend, groups, a, b):
         kern = backend.kernel("map_points", kind + options)
-        keep.append((_small_buffer(cl, ctx, blocks), _small_buffer(cl, ctx, which)))
+        keep.append((_small_buffer(cl, backend.context, blocks), _small_buffer(cl, backend.context, which)))
         kern.set_args(keep[-1][0], src, dst, np.int32(p), keep[-1][1], np.int32(rows))
-        cl.enqueue_nd_range_kernel(queue, kern, (total, 1, len(which)), (backend.local_x, 1, 1))
-    if backend.zero_copy:
-        mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
-        event.wait()
-        del mapped
-    else:
-        cl.enqueue_copy(queue, out[a:b], dst)
-    queue.finish()
+        cl.enqueue_nd_range_kernel(backend.queue, kern, (total, 1, len(which)), (backend.local_x, 1, 1))
+    return keep

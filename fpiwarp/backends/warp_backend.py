@@ -337,6 +337,22 @@ class Backend:
         with self._lock:
             return runner.map_points_batch(transforms, points)
 
+    def warp_batch_into(self, stack, transforms, output_shape, out, *, order, mode, cval, antialias=False):
+        """:meth:`warp_batch` on Warp arrays of this device: ``stack``
+        (N, H, W, C) read and ``out`` (N, rows, cols, C) written in place,
+        any strides; returns ``out`` (on CUDA without waiting)."""
+        del output_shape  # out's
+        runner = self.batches()
+        with self._lock:
+            return runner.warp_arrays(stack, out, transforms, order=order, mode=mode, cval=cval, antialias=antialias)
+
+    def map_points_batch_into(self, transforms, points, out):
+        """:meth:`map_points_batch` on (N, P) ``vec2d`` Warp arrays of this
+        device, in place; returns ``out``."""
+        runner = self.batches()
+        with self._lock:
+            return runner.map_points_arrays(transforms, points, out)
+
     def antialias_kernels(self):
         """The module of antialiased kernels, loaded on first use."""
         from fpiwarp.kernels import warp_antialias  # noqa: PLC0415 - compiled only when asked for

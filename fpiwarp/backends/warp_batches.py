@@ -13,11 +13,20 @@ batches and point sets run the generic kernels of
 mix of kinds. On the CPU device every launch is split, like one tall
 image, into one band of rows per thread of the backend's pool.
 
-Bounds: a launch covers at most :data:`CHUNK_BYTES` of input plus output
-(at least one image): larger batches are several launches, never refused.
-On the CPU the kernels read and write the caller's arrays in place; on
-CUDA each chunk is copied in, warped and copied out (no overlap of copies
-and kernels yet: see the opencl backend's pipelined transfers).
+Device arrays: :meth:`BatchRunner.warp_arrays` and
+:meth:`BatchRunner.map_points_arrays` read and write Warp arrays of the
+backend's device in place, any strides (:mod:`fpiwarp.arrays` views
+torch, CuPy, JAX and DLPack stacks as such, channels-first ones as
+transposed views): contiguous stacks run the row-offset batch kernel,
+others :func:`fpiwarp.kernels.warp_kinds.strided_batch_kernel` (the same
+per-pixel function on sub-array views). Nothing is chunked or copied.
+
+Host stacks: on the CPU the kernels read and write the caller's numpy
+arrays in place (aliased). On CUDA the stack goes in chunks of at most
+:data:`CHUNK_BYTES` of input plus output (at least one image), each
+copied in, warped and copied out (no overlap of copies and kernels: see
+the opencl backend's pipelined transfers); larger batches are never
+refused.
 """
 
 import numpy as np
@@ -25,7 +34,7 @@ import numpy as np
 from ..block import describe
 from ..block.sampling_rules import MODES
 
-#: Bytes of input plus output one launch covers at most.
+#: Bytes of input plus output of one chunk of a host stack on CUDA.
 CHUNK_BYTES = 256 << 20
 
 _TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
@@ -72,6 +81,16 @@ def _ranges(n, item_bytes):
     return [(a, min(n, a + per)) for a in range(0, n, per)]
 
 
+def row_view(wp, arr):
+    """(N·H, W, C) view of an (N, H, W, C) Warp array whose images follow
+    each other at H rows' stride (any contiguous stack), else None."""
+    n, h, w, c = arr.shape
+    s = arr.strides
+    if n > 1 and s[0] != h * s[1]:
+        return None
+    return wp.array(ptr=arr.ptr, dtype=arr.dtype, shape=(n * h, w, c), strides=s[1:], device=arr.device)
+
+
 class BatchRunner:
     """Batches on one Warp backend: ``wp`` (the module), ``device``,
     ``on_cpu`` and ``launch(kernel, rows, cols, inputs)`` (the backend's
@@ -91,55 +110,58 @@ class BatchRunner:
         return self._array(idx, self.wp.int32)
 
     def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False):
-        """(N, rows, cols, C) from a validated (N, H, W, C) stack and one
-        map or one map per image."""
+        """(N, rows, cols, C) from a validated (N, H, W, C) numpy stack and
+        one map or one map per image (:meth:`warp_arrays` on the CPU's
+        aliases of the caller's arrays; on CUDA chunk by chunk, copied in
+        and out)."""
         wp = self.wp
         n, h, w, c = stack.shape
         oh, ow = output_shape
         out = np.empty((n, oh, ow, c), dtype=stack.dtype)
-        cv = np.zeros(4, dtype=np.float32)
-        cv[:c] = cval
-        if antialias:
-            self._antialias(stack, transforms, out, order, MODES.index(mode), wp.vec4(*cv.tolist()))
-            return out
-        from fpiwarp.kernels import warp_kinds  # noqa: PLC0415 - Warp imported with the backend
-
         scalar = wp.dtype_from_numpy(stack.dtype)
-        # images are row offsets into (N·H, W, C) arrays (see warp_kinds.batch_kernel)
-        whole = (self._array(stack.reshape(n * h, w, c), scalar), self._array(out.reshape(n * oh, ow, c), scalar))\
-            if self.on_cpu else None
-        for key, blocks, images in kind_groups([t.inverse for t in transforms], n):
-            kernel = warp_kinds.batch_kernel(key, order, c, MODES.index(mode), stack.dtype)
-            step = int(len(blocks) > 1)
-            for a, b in _ranges(len(images), stack[0].nbytes + out[0].nbytes):
-                blks = self._array(blocks[a * step: b * step + 1 - step], wp.vec4)
-                idx = images[a:b]
-                if self.on_cpu:
-                    src, dst = whole
-                else:  # this chunk's images copied in, numbered 0..b-a
-                    src = self._array(stack[idx].reshape((b - a) * h, w, c), scalar)
-                    dst = wp.empty(((b - a) * oh, ow, c), scalar, self.device)
-                    idx = np.arange(b - a, dtype=np.int32)
-                inputs = [blks, self._array(idx, wp.int32), src, dst, h, oh, step, wp.vec4(*cv.tolist())]
-                self.launch(kernel, (b - a) * oh, ow, inputs)
-                if not self.on_cpu:
-                    out[images[a:b]] = dst.numpy().reshape(b - a, oh, ow, c)
+        options = {"order": order, "mode": mode, "cval": cval, "antialias": antialias}
+        if self.on_cpu:
+            self.warp_arrays(self._array(stack, scalar), self._array(out, scalar), transforms, **options)
+            return out
+        for a, b in _ranges(n, stack[0].nbytes + out[0].nbytes):
+            src = wp.array(stack[a:b], dtype=scalar, device=self.device)
+            dst = wp.empty((b - a, oh, ow, c), scalar, self.device)
+            self.warp_arrays(src, dst, transforms if len(transforms) == 1 else transforms[a:b], **options)
+            out[a:b] = dst.numpy()
         return out
 
-    def _antialias(self, stack, transforms, out, order, mode, cval):
-        """The antialiased batch (generic kernel, as the single image's) into ``out``."""
+    def warp_arrays(self, src, dst, transforms, *, order, mode, cval, antialias=False):
+        """Warp (N, H, W, C) Warp array ``src`` into (N, rows, cols, C)
+        ``dst``, both on this device with any strides, read and written in
+        place: one launch per kind of map (one for antialiased batches).
+        Returns ``dst`` (on CUDA without waiting for the kernels)."""
         wp = self.wp
-        n, oh, ow, _ = out.shape
-        scalar = wp.dtype_from_numpy(stack.dtype)
-        tail = [int(order), mode, cval, _TOP[stack.dtype]]
-        blocks = stacked_blocks([t.inverse for t in transforms])
-        blks = self._array(blocks, wp.vec4)
-        for a, b in _ranges(n, stack[0].nbytes + out[0].nbytes):
-            src = self._array(stack[a:b], scalar)
-            dst = self._array(out[a:b], scalar) if self.on_cpu else wp.empty(out[a:b].shape, scalar, self.device)
-            self.launch(self.k.batch_antialias, (b - a) * oh, ow, [blks, self._which(blocks, a, b), src, dst, *tail])
-            if not self.on_cpu:
-                out[a:b] = dst.numpy()
+        n, h, _, c = src.shape
+        oh, ow = dst.shape[1], dst.shape[2]
+        dtype = np.dtype(wp.dtype_to_numpy(src.dtype))
+        cv = np.zeros(4, dtype=np.float32)
+        cv[:c] = cval
+        cval4 = wp.vec4(*cv.tolist())
+        if antialias:  # the generic kernel, as for one image
+            blocks = stacked_blocks([t.inverse for t in transforms])
+            tail = [int(order), MODES.index(mode), cval4, _TOP[dtype]]
+            self.launch(self.k.batch_antialias, n * oh, ow,
+                        [self._array(blocks, wp.vec4), self._which(blocks, 0, n), src, dst, *tail])
+            return dst
+        from fpiwarp.kernels import warp_kinds  # noqa: PLC0415 - Warp imported with the backend
+
+        rows = (row_view(wp, src), row_view(wp, dst))  # images as row offsets, where the strides allow
+        for key, blocks, images in kind_groups([t.inverse for t in transforms], n):
+            step = int(len(blocks) > 1)
+            head = [self._array(blocks, wp.vec4), self._array(images, wp.int32)]
+            if None not in rows:
+                kernel = warp_kinds.batch_kernel(key, order, c, MODES.index(mode), dtype)
+                inputs = [*head, *rows, h, oh, step, cval4]
+            else:
+                kernel = warp_kinds.strided_batch_kernel(key, order, c, MODES.index(mode), dtype)
+                inputs = [*head, src, dst, step, cval4]
+            self.launch(kernel, len(images) * oh, ow, inputs)
+        return dst
 
     def map_points_batch(self, transforms, points):
         """float64 (N, P, 2) point sets mapped by one map or one each."""
@@ -149,12 +171,23 @@ class BatchRunner:
         out = np.empty_like(pts)
         if n == 0 or p == 0:
             return out
-        blocks = stacked_blocks(transforms)
-        blks = self._array(blocks, wp.vec4)
+        if self.on_cpu:
+            self.map_points_arrays(transforms, self._array(pts, wp.vec2d), self._array(out, wp.vec2d))
+            return out
         for a, b in _ranges(n, 2 * pts[0].nbytes):
-            src = self._array(pts[a:b], wp.vec2d)
-            dst = self._array(out[a:b], wp.vec2d) if self.on_cpu else wp.empty((b - a, p), wp.vec2d, self.device)
-            self.launch(self.k.batch_map_points, (b - a) * p, None, [blks, self._which(blocks, a, b), src, dst])
-            if not self.on_cpu:
-                out[a:b] = dst.numpy()
+            src = wp.array(pts[a:b], dtype=wp.vec2d, device=self.device)
+            dst = wp.empty((b - a, p), wp.vec2d, self.device)
+            self.map_points_arrays(transforms if len(transforms) == 1 else transforms[a:b], src, dst)
+            out[a:b] = dst.numpy()
+        return out
+
+    def map_points_arrays(self, transforms, points, out):
+        """(N, P) ``vec2d`` Warp arrays of this device, any strides:
+        ``out[i]`` = ``points[i]`` mapped by ``transforms[i]`` (or all by
+        one map), in one launch; returns ``out`` (on CUDA without waiting)."""
+        n, p = points.shape
+        if n and p:
+            blocks = stacked_blocks(transforms)
+            self.launch(self.k.batch_map_points, n * p, None,
+                        [self._array(blocks, self.wp.vec4), self._which(blocks, 0, n), points, out])
         return out
