@@ -44,7 +44,7 @@ def stack_shape(shape, channels):
 def check_maps(maps, hwc, dtype, output_shape, order, mode, cval, backend, antialias):
     """Each map checked as warp_image checks it (nothing is read): (output
     shape, order, mode, cval, options, the maps as the backend reads them)."""
-    checked = [check_device_warp(hwc, dtype, t, output_shape, order, mode, cval, backend, None, antialias)
+    checked = [check_device_warp(hwc, dtype, t, output_shape, order, mode, cval, backend, None, antialias, "images")
                for t in maps]
     return (*checked[0][:5], [c[5] for c in checked])
 

@@ -73,14 +73,15 @@ class Inverted:
         self.inverse = InverseBlock(transform.inverse.stages())
 
 
-def check_device_warp(shape, dtype, transform, output_shape, order, mode, cval, backend, backend_options, antialias):
+def check_device_warp(shape, dtype, transform, output_shape, order, mode, cval, backend, backend_options, antialias,
+                      name="image"):
     """:func:`fpiwarp.validation.check_warp_arguments` for an image known by
     (H, W, C) ``shape`` and ``dtype`` only: nothing is read or copied.
     Returns (output_shape, order, mode, cval, options, the map as an
-    :class:`Inverted` for the backend)."""
+    :class:`Inverted` for the backend); errors name the argument ``name``."""
     caps = backend_capabilities(backend)
     order, mode = check_warp_options(transform, order, mode)
-    proxy, _ = check_image(np.broadcast_to(np.zeros((), dtype), shape))
+    proxy, _ = check_image(np.broadcast_to(np.zeros((), dtype), shape), name=name)
     cval = check_cval(cval, shape[2], proxy.dtype)
     out_shape = check_output_shape(output_shape, proxy)
     options = check_backend_call(shape, out_shape, proxy.dtype, order, mode, caps, backend, backend_options, antialias)
