@@ -19,11 +19,12 @@ def map_points_batch(
 ) -> object:
     """Map N point sets, ``points[i]`` by ``transforms[i]`` (or all by one map).
 
-    On the "opencl" and "warp" backends the whole batch is one kernel
-    launch (opencl: one per kind of map, see
-    :mod:`fpiwarp.backends.opencl_batch`); each set's result equals
+    On "opencl" the batch is one kernel launch per kind of map
+    (:mod:`fpiwarp.backends.opencl_batch`), on "warp" one launch, on "gl"
+    one transform-feedback pass per kind of map
+    (:mod:`fpiwarp.backends.gl.batch_points`); each set's result equals
     :func:`fpiwarp.map_points` of that set on the same backend, bit for
-    bit. Other backends map the sets one after the other.
+    bit. "numpy" maps the sets one after the other.
 
     Parameters
     ----------

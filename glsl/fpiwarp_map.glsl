@@ -30,8 +30,11 @@
 // The parameter block: row 0 header, then the stages (fpiwarp/block/layout.py).
 // std140 gives an array of vec4 a stride of 16 bytes: no padding traps.
 #ifdef FPW_BATCH
-// a batch: the instance's block of a storage buffer (see batch.glsl)
+// a batch: the instance's block of a storage buffer (see batch.glsl; a
+// stage that sets fpw_batch itself defines FPW_BATCH_VARYING empty first)
+#ifndef FPW_BATCH_VARYING
 #define FPW_BATCH_VARYING flat in
+#endif
 #define FPW_BATCH_BLOCK fpw_batch.x
 #include "batch.glsl"
 #else

@@ -65,6 +65,14 @@ class Backend:
         return warp_batch(self.warper, stack, blocks, output_shape, order=order, mode=mode, cval=cval,
                           antialias=antialias)
 
+    def map_points_batch(self, transforms, points):
+        """float64 (N, P, 2) point sets mapped by one map or one map each,
+        one transform-feedback pass per kind of map (see :mod:`.batch_points`)."""
+        from .batch_points import map_points_batch  # noqa: PLC0415 - loaded with the first batch
+
+        check_thread()
+        return map_points_batch(self.warper, [t.params() for t in transforms], points)
+
     def bind(self, transform):
         """``transform`` prepared for many images: its inverse's block packed
         and checked once (:class:`BoundMap`)."""
