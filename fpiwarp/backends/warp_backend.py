@@ -200,12 +200,13 @@ class Backend:
         for future in [self._pool.submit(launch.launch) for launch in launches]:
             future.result()
 
-    def _launch(self, kernel, rows, cols, inputs):
-        """Launch ``kernel`` over (rows, cols), or over rows when cols is None;
-        the kernel's last input is the first row. On the CPU, large launches
-        are split into one band of rows per thread."""
+    def _launch(self, kernel, rows, cols, inputs, row_items=None):
+        """Launch ``kernel`` over (rows, cols), or over rows when cols is None
+        (each row ``row_items`` items of work, for the bands); the kernel's
+        last input is the first row. On the CPU, large launches are split
+        into one band of rows per thread."""
         wp = self._wp
-        bands = self.band_count(rows, cols)
+        bands = self.band_count(rows, cols or row_items)
 
         def launch(r0, r1):
             dim = r1 - r0 if cols is None else (r1 - r0, cols)

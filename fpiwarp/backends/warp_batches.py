@@ -151,16 +151,18 @@ class BatchRunner:
         from fpiwarp.kernels import warp_kinds  # noqa: PLC0415 - Warp imported with the backend
 
         rows = (row_view(wp, src), row_view(wp, dst))  # images as row offsets, where the strides allow
+        strided = None in rows
         for key, blocks, images in kind_groups([t.inverse for t in transforms], n):
             step = int(len(blocks) > 1)
             head = [self._array(blocks, wp.vec4), self._array(images, wp.int32)]
-            if None not in rows:
-                kernel = warp_kinds.batch_kernel(key, order, c, MODES.index(mode), dtype)
-                inputs = [*head, *rows, h, oh, step, cval4]
+            inputs = [*head, src, dst, step, cval4] if strided else [*head, *rows, h, oh, step, cval4]
+            sampling = (key, order, c, MODES.index(mode), dtype)
+            if self.on_cpu:  # a thread per row (see warp_kinds.row_batch_kernel)
+                self.launch(warp_kinds.row_batch_kernel(*sampling, strided=strided), len(images) * oh, None, inputs,
+                            ow)
             else:
-                kernel = warp_kinds.strided_batch_kernel(key, order, c, MODES.index(mode), dtype)
-                inputs = [*head, src, dst, step, cval4]
-            self.launch(kernel, len(images) * oh, ow, inputs)
+                kernel = (warp_kinds.strided_batch_kernel if strided else warp_kinds.batch_kernel)(*sampling)
+                self.launch(kernel, len(images) * oh, ow, inputs)
         return dst
 
     def map_points_batch(self, transforms, points):
