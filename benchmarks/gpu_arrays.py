@@ -24,6 +24,10 @@ tensor with ``out=``) and the kernel alone (the backend's prepared job),
 frames per second and the ratio to the kernel alone (target: device
 resident within 1.5x). Results go to DIR/arrays_gpu.md (default
 benchmarks/results/).
+
+Batches of device arrays (warp_batch / map_points_batch on Warp, torch and
+CuPy stacks; batch vs loop and the 16 x 4K bandwidth) are checked and timed
+by :mod:`benchmarks.gpu_batches` in the same run, into the same file.
 """
 
 import argparse
@@ -39,8 +43,10 @@ import fpiwarp
 from fpiwarp.backends import get_backend, warp_backend
 
 try:  # python3 -m benchmarks.gpu_arrays
+    from . import gpu_batches
     from .arrays import fpi_for
 except ImportError:  # python3 benchmarks/gpu_arrays.py
+    import gpu_batches
     from arrays import fpi_for
 
 RESULTS = []
@@ -50,7 +56,7 @@ def check(name, fn):
     """Run one check; record PASS, FAIL (with the error) or SKIP."""
     try:
         fn()
-    except _Skip as skip:
+    except (_Skip, gpu_batches.Skip) as skip:
         RESULTS.append((name, "SKIP", str(skip)))
     except Exception as exc:  # noqa: BLE001 - reported, the run goes on
         RESULTS.append((name, "FAIL", f"{type(exc).__name__}: {exc}"))
@@ -238,10 +244,18 @@ def main(argv=None):
     check("Warp arrays on cuda:0", check_warp_cuda)
     check("PyTorch CUDA tensors", check_torch)
     check("CuPy arrays", check_cupy)
+    single = len(RESULTS)
+    for name, fn in gpu_batches.CHECKS.items():  # batches of device arrays
+        check(name, fn)
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",") if s]
     rows = timings(sizes, args.repeat)
+    batch_rows = gpu_batches.timings(max(3, args.repeat // 4))
+    batches = RESULTS[single:]
+    del RESULTS[single:]
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "arrays_gpu.md").write_text(markdown(rows), encoding="utf-8")
+    (args.out / "arrays_gpu.md").write_text(markdown(rows) + gpu_batches.markdown(batches, batch_rows),
+                                            encoding="utf-8")
+    RESULTS.extend(batches)
     return 1 if any(r == "FAIL" for _, r, _ in RESULTS) else 0
 
 

@@ -14,9 +14,18 @@ import numpy as np
 
 from .._errors import ArgumentError, ArgumentTypeError
 from .._transform import Transform
-from ..backends import check_backend_name
+from ..backends import backend_capabilities, check_backend_name
+from ..validation import check_map_size, check_transform
 from . import convert
-from .dispatch import HOST_BACKENDS, check_channels, check_device_warp, hwc_shape, mismatch, output_layout
+from .dispatch import (
+    HOST_BACKENDS,
+    Inverted,
+    check_channels,
+    check_device_warp,
+    hwc_shape,
+    mismatch,
+    output_layout,
+)
 from .kinds import array_info, choose_backend
 
 DEVICE_KINDS = ("warp", "dlpack", "cuda_array_interface")
@@ -42,11 +51,18 @@ def stack_shape(shape, channels):
 
 
 def check_maps(maps, hwc, dtype, output_shape, order, mode, cval, backend, antialias):
-    """Each map checked as warp_image checks it (nothing is read): (output
-    shape, order, mode, cval, options, the maps as the backend reads them)."""
-    checked = [check_device_warp(hwc, dtype, t, output_shape, order, mode, cval, backend, None, antialias, "images")
-               for t in maps]
-    return (*checked[0][:5], [c[5] for c in checked])
+    """Everything checked as warp_image checks it for each image (nothing
+    is read; what does not depend on the map once): (output shape, order,
+    mode, cval, options, the maps as the backend reads them)."""
+    *first, inverted = check_device_warp(hwc, dtype, maps[0], output_shape, order, mode, cval, backend, None,
+                                         antialias, "images")
+    caps = backend_capabilities(backend)
+    rest = []
+    for t in maps[1:]:
+        check_transform(t, "transforms")
+        rest.append(Inverted(t))
+        check_map_size(rest[-1].inverse, caps, backend)
+    return (*first, [inverted, *rest])
 
 
 def warp_batch(images, transforms, output_shape, *, order, mode, cval, backend, antialias, out, channels, host_batch):
@@ -198,8 +214,7 @@ def _host_points(transforms, points, name, out, host_batch):
 def check_point_maps(transforms, shape, backend):
     """(N, P, the maps) of a device batch of points of ``shape``, each map
     checked as map_points checks it."""
-    from ..backends import backend_capabilities  # noqa: PLC0415
-    from ..validation import check_map_size, check_point_count, check_transform  # noqa: PLC0415
+    from ..validation import check_point_count  # noqa: PLC0415
 
     if len(shape) < 2 or shape[-1] != 2:
         raise ArgumentError(f"points must have shape (N, ..., 2), got {tuple(shape)}")
