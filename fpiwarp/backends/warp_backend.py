@@ -324,13 +324,14 @@ class Backend:
                 self._batch_runner = BatchRunner(self._wp, self.device, self._on_cpu, self._launch, warp_batch)
         return self._batch_runner
 
-    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False):
+    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):
         """A validated (N, H, W, C) stack warped by one map or one map per
-        image in one launch (see :mod:`fpiwarp.backends.warp_batches`)."""
+        image in one launch per kind (see :mod:`fpiwarp.backends.warp_batches`;
+        ``transfer``: how a stack reaches a CUDA device, "serial" or "pipelined")."""
         runner = self.batches()
         with self._lock:
             return runner.warp_batch(stack, transforms, output_shape, order=order, mode=mode, cval=cval,
-                                     antialias=antialias)
+                                     antialias=antialias, transfer=transfer)
 
     def map_points_batch(self, transforms, points):
         """float64 (N, P, 2) point sets mapped by one map or one map each, in one launch."""

@@ -24,9 +24,9 @@ per-pixel function on sub-array views). Nothing is chunked or copied.
 Host stacks: on the CPU the kernels read and write the caller's numpy
 arrays in place (aliased). On CUDA the stack goes in chunks of at most
 :data:`CHUNK_BYTES` of input plus output (at least one image), each
-copied in, warped and copied out (no overlap of copies and kernels: see
-the opencl backend's pipelined transfers); larger batches are never
-refused.
+copied in, warped and copied out, one after the other (``transfer=
+"serial"``, the default) or overlapped (``"pipelined"``:
+:class:`PipelinedTransfers`); larger batches are never refused.
 """
 
 import numpy as np
@@ -36,6 +36,11 @@ from ..block.sampling_rules import MODES
 
 #: Bytes of input plus output of one chunk of a host stack on CUDA.
 CHUNK_BYTES = 256 << 20
+#: Chunk size of the pipelined transfers (small enough that a batch is a
+#: few chunks whose copies overlap their neighbours' kernels).
+PIPELINE_CHUNK_BYTES = 32 << 20
+#: The ways a host stack may reach a CUDA device (``transfer=``).
+TRANSFERS = ("serial", "pipelined")
 
 _TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
 
@@ -77,7 +82,12 @@ def _padded(blocks):
 
 
 def _ranges(n, item_bytes):
-    per = max(1, CHUNK_BYTES // max(item_bytes, 1))
+    return _ranges_of(n, item_bytes, CHUNK_BYTES)
+
+
+def _ranges_of(n, item_bytes, limit):
+    """[start, stop) ranges of at most ``limit`` bytes (at least one item each) covering ``n`` items."""
+    per = max(1, limit // max(item_bytes, 1))
     return [(a, min(n, a + per)) for a in range(0, n, per)]
 
 
@@ -98,6 +108,7 @@ class BatchRunner:
 
     def __init__(self, wp, device, on_cpu, launch, kernels):
         self.wp, self.device, self.on_cpu, self.launch, self.k = wp, device, on_cpu, launch, kernels
+        self.pipelined = None  # the pipelined transfers' streams and buffers, made on first use
 
     def _array(self, data, dtype):
         """``data`` on the device: aliased on the CPU, copied on CUDA."""
@@ -109,20 +120,26 @@ class BatchRunner:
         idx = np.zeros(b - a, dtype=np.int32) if blocks.shape[0] == 1 else np.arange(a, b, dtype=np.int32)
         return self._array(idx, self.wp.int32)
 
-    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False):
+    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):
         """(N, rows, cols, C) from a validated (N, H, W, C) numpy stack and
         one map or one map per image (:meth:`warp_arrays` on the CPU's
         aliases of the caller's arrays; on CUDA chunk by chunk, copied in
-        and out)."""
+        and out: ``transfer`` "serial" (default) or "pipelined", see
+        :class:`PipelinedTransfers`)."""
         wp = self.wp
         n, h, w, c = stack.shape
         oh, ow = output_shape
         out = np.empty((n, oh, ow, c), dtype=stack.dtype)
         scalar = wp.dtype_from_numpy(stack.dtype)
         options = {"order": order, "mode": mode, "cval": cval, "antialias": antialias}
+        if transfer not in (None, *TRANSFERS):
+            raise ValueError(f"transfer must be one of {TRANSFERS}, got {transfer!r}")
         if self.on_cpu:
             self.warp_arrays(self._array(stack, scalar), self._array(out, scalar), transforms, **options)
             return out
+        if transfer == "pipelined":
+            self.pipelined = self.pipelined or PipelinedTransfers(self)
+            return self.pipelined.run(stack, out, transforms, options)
         for a, b in _ranges(n, stack[0].nbytes + out[0].nbytes):
             src = wp.array(stack[a:b], dtype=scalar, device=self.device)
             dst = wp.empty((b - a, oh, ow, c), scalar, self.device)
@@ -192,4 +209,62 @@ class BatchRunner:
             blocks = stacked_blocks(transforms)
             self.launch(self.k.batch_map_points, n * p, None,
                         [self._array(blocks, self.wp.vec4), self._which(blocks, 0, n), points, out])
+        return out
+
+
+class PipelinedTransfers:
+    """Host stacks through a CUDA device with copies overlapping kernels:
+    chunks of :data:`PIPELINE_CHUNK_BYTES` go through two slots, each a
+    stream with pinned host staging and device buffers for one chunk in
+    and out (kept across calls while the shapes hold). Chunk i is copied
+    into its slot's pinned buffer (a host memcpy), then uploaded, warped
+    and downloaded on the slot's stream, while the other slot's chunk
+    runs on the other stream; a slot is drained (waited for, its pinned
+    output copied out) before it is reused. Results equal the serial
+    path's (the same :meth:`BatchRunner.warp_arrays`)."""
+
+    def __init__(self, runner):
+        self.runner, self.key, self.slots = runner, None, []
+
+    def _slots(self, per, image, output, scalar):
+        wp, device = self.runner.wp, self.runner.device
+        key = (per, image, output, scalar)
+        if key != self.key:
+            self.slots = [{"stream": wp.Stream(device),
+                           "pin_in": wp.empty((per, *image), dtype=scalar, device="cpu", pinned=True),
+                           "pin_out": wp.empty((per, *output), dtype=scalar, device="cpu", pinned=True),
+                           "src": wp.empty((per, *image), dtype=scalar, device=device),
+                           "dst": wp.empty((per, *output), dtype=scalar, device=device),
+                           "pending": None} for _ in range(2)]
+            self.key = key
+        return self.slots
+
+    def _drain(self, slot, out):
+        """Wait for the slot's last chunk and copy its output out of pinned memory."""
+        if slot["pending"] is not None:
+            event, a, b = slot["pending"]
+            self.runner.wp.synchronize_event(event)
+            out[a:b] = slot["pin_out"].numpy()[: b - a]
+            slot["pending"] = None
+
+    def run(self, stack, out, transforms, options):
+        """``out`` (N, rows, cols, C) from ``stack`` (N, H, W, C), pipelined."""
+        wp = self.runner.wp
+        n = stack.shape[0]
+        chunks = _ranges_of(n, stack[0].nbytes + out[0].nbytes, PIPELINE_CHUNK_BYTES)
+        per = chunks[0][1] - chunks[0][0]
+        slots = self._slots(per, stack.shape[1:], out.shape[1:], wp.dtype_from_numpy(stack.dtype))
+        for i, (a, b) in enumerate(chunks):
+            slot = slots[i % 2]
+            self._drain(slot, out)
+            m, stream = b - a, slot["stream"]
+            slot["pin_in"].numpy()[:m] = stack[a:b]
+            wp.copy(slot["src"][:m], slot["pin_in"][:m], stream=stream)
+            with wp.ScopedStream(stream):
+                self.runner.warp_arrays(slot["src"][:m], slot["dst"][:m],
+                                        transforms if len(transforms) == 1 else transforms[a:b], **options)
+            wp.copy(slot["pin_out"][:m], slot["dst"][:m], stream=stream)
+            slot["pending"] = (stream.record_event(), a, b)
+        for slot in slots:
+            self._drain(slot, out)
         return out
