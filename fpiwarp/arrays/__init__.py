@@ -21,6 +21,12 @@ read the data in place (a CUDA tensor for "opencl", a texture for
 "warp") raises :class:`~fpiwarp.DeviceMismatchError`. CPU DLPack arrays
 also run on the host backends, through a numpy view.
 
+:func:`fpiwarp.warp_batch` and :func:`fpiwarp.map_points_batch` take
+stacks (N, H, W[, C]), or (N, C, H, W) with ``channels="first"``, and
+point sets (N, ..., 2) of the same kinds the same way (Warp/DLPack/CUDA
+on "warp", pyopencl on "opencl"), one launch per kind of map, in place
+(:mod:`fpiwarp.arrays.batch_path`).
+
 Nothing here imports torch, CuPy or JAX: arrays are recognized by their
 protocols and by the types of libraries already imported
 (:func:`array_info`).
