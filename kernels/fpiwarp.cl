@@ -25,6 +25,10 @@
 #ifndef FW_LOCAL_X
 #define FW_LOCAL_X 64
 #endif
+/* warp_image's work-groups are FW_LOCAL_X x FW_LOCAL_Y pixels */
+#ifndef FW_LOCAL_Y
+#define FW_LOCAL_Y 1
+#endif
 
 /* FW_BATCH (fpiwarp/backends/opencl_batch.py): one launch warps (or maps
  * the points of) many images, launch dimension 2 naming which. Item z of
@@ -79,8 +83,10 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
 #ifdef FW_T
 /* The store phase of every warp kernel: the FW_VN pixels of the kernel's
  * sampled value v (fw_pxv), converted to the image's type, into row oy
- * from the work-item's first pixel gx0 + FW_VN * l (padding lanes rewrite
- * the row's last pixel). */
+ * from the work-item's first pixel gx0 + FW_VN * l. A work-item whose
+ * pixels all lie in the row stores at constant offsets from one address;
+ * one at the row's end clamps each lane (padding lanes rewrite the row's
+ * last pixel). */
 #define FW_RESULT(k, _) fw_ov res##k = FW_TO_DTYPE(v.c##k);
 #define FW_STORE_C(k, lane) dst[at + k] = (FW_T)FW_LANE(res##k, lane);
 #define FW_STORE_LANE(lane, _)                                         \
@@ -88,36 +94,48 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
         int at = (oy * ow + min(gx0 + FW_VN * l + lane, ow - 1)) * FW_C; \
         FW_EACH_C(FW_STORE_C, lane)                                    \
     }
-#define FW_STORE_PIXELS()                  \
-    do {                                   \
-        FW_EACH_C(FW_RESULT, _)            \
-        FW_EACH_LANE(FW_STORE_LANE, _)     \
+#define FW_STORE_C_AT(k, lane) out[FW_C * lane + k] = (FW_T)FW_LANE(res##k, lane);
+#define FW_STORE_LANE_AT(lane, _) FW_EACH_C(FW_STORE_C_AT, lane)
+#define FW_STORE_PIXELS()                                                 \
+    do {                                                                  \
+        FW_EACH_C(FW_RESULT, _)                                           \
+        if (gx0 + FW_VN * (l + 1) <= ow) {                                \
+            __global FW_T *out = dst + (oy * ow + gx0 + FW_VN * l) * FW_C; \
+            FW_EACH_LANE(FW_STORE_LANE_AT, _)                             \
+        } else {                                                          \
+            FW_EACH_LANE(FW_STORE_LANE, _)                                \
+        }                                                                 \
     } while (0)
 
 /* dst (oh x ow x FW_C) = src (h x w x FW_C) sampled at map(x, y) for every
  * output pixel center (x, y); block holds the inverse of the user's map.
  *
- * Work-groups are FW_LOCAL_X x 1 pixels of a row (the host rounds the
- * global size up; padding work-items redo the row's last pixel, writing
- * the same values). Two phases split by a barrier: the map, one pixel per
- * work-item, into local memory (on a CPU, PoCL compiles it into a loop
- * over work-items and vectorizes it); then the sampling, FW_VN pixels per
- * work-item in vector types, by the first FW_LOCAL_X / FW_VN work-items. */
-__kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
+ * Work-groups are tiles of FW_LOCAL_X x FW_LOCAL_Y pixels (the host
+ * rounds the global size up; padding work-items past a row's end redo the
+ * row's last pixel, writing the same values; padding rows past the last
+ * map the last row and write nothing). Tiles several rows high (on CPUs)
+ * keep the source rows they read in the cache: consecutive rows read
+ * overlapping source rows. Two phases split by a barrier: the map, one
+ * pixel per work-item, into local memory (on a CPU, PoCL compiles it into
+ * a loop over work-items and vectorizes it); then the sampling, FW_VN
+ * pixels per work-item in vector types, by the first FW_LOCAL_X / FW_VN
+ * work-items of each row. */
+__kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, FW_LOCAL_Y, 1)))
 void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int h,
                 __global FW_T *restrict dst, int ow, int oh, float4 cval FW_BATCH_ARGS)
 {
     FW_BATCH_SELECT(src, dst, w * h * FW_C, ow * oh * FW_C);
-    __local float pos_x[FW_LOCAL_X], pos_y[FW_LOCAL_X];
+    __local float pos_x[FW_LOCAL_Y * FW_LOCAL_X], pos_y[FW_LOCAL_Y * FW_LOCAL_X];
     int l = get_local_id(0), oy = get_global_id(1);
     int gx0 = get_group_id(0) * FW_LOCAL_X; /* the group's first pixel */
-    fw_c s = fw_map(block, fw_cx((float)min(gx0 + l, ow - 1), (float)oy));
-    pos_x[l] = s.re;
-    pos_y[l] = s.im;
+    int row = get_local_id(1) * FW_LOCAL_X; /* the row's part of the local arrays */
+    fw_c s = fw_map(block, fw_cx((float)min(gx0 + l, ow - 1), (float)min(oy, oh - 1)));
+    pos_x[row + l] = s.re;
+    pos_y[row + l] = s.im;
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (l >= FW_LOCAL_X / FW_VN)
+    if (l >= FW_LOCAL_X / FW_VN || oy >= oh)
         return;
-    fw_fv sx = FW_VLOAD(pos_x + FW_VN * l), sy = FW_VLOAD(pos_y + FW_VN * l);
+    fw_fv sx = FW_VLOAD(pos_x + row + FW_VN * l), sy = FW_VLOAD(pos_y + row + FW_VN * l);
     fw_pxv v = fw_sample(src, w, h, sx, sy, cval);
     FW_STORE_PIXELS();
 }

@@ -544,18 +544,19 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
 
 /* The taps of fw_sample: tap (i, j) adds its weight times its value to
  * acc##k for each channel k; a tap's value is one gather per channel, or
- * one gather of 32-bit words for all channels (FW_WORD_BITS). */
+ * one gather of 32-bit words for all channels (FW_WORD_BITS), at the lanes'
+ * element indices `at` plus a constant `off`. */
 #if FW_WORD_BITS
 #define FW_TAP_LOAD(at) fw_uv word = FW_GATHER(fw_uv, FW_WORD_AT);
-#define FW_WORD_AT(k) ((__global const fw_word *)(img + FW_LANE(at, k)))->v
+#define FW_WORD_AT(k) ((__global const fw_word *)(img + (FW_LANE(at, k) + off)))->v
 #define FW_VALUE(k, at) FW_CONVERT(float, (word >> (FW_WORD_BITS * k)) & (uint)FW_TOP)
 #else
 #define FW_TAP_LOAD(at)
 #define FW_VALUE(k, at) FW_GATHER(fw_fv, FW_VALUE_AT_##k)
-#define FW_VALUE_AT_0(j) (float)img[FW_LANE(at, j) + 0]
-#define FW_VALUE_AT_1(j) (float)img[FW_LANE(at, j) + 1]
-#define FW_VALUE_AT_2(j) (float)img[FW_LANE(at, j) + 2]
-#define FW_VALUE_AT_3(j) (float)img[FW_LANE(at, j) + 3]
+#define FW_VALUE_AT_0(j) (float)img[FW_LANE(at, j) + (off + 0)]
+#define FW_VALUE_AT_1(j) (float)img[FW_LANE(at, j) + (off + 1)]
+#define FW_VALUE_AT_2(j) (float)img[FW_LANE(at, j) + (off + 2)]
+#define FW_VALUE_AT_3(j) (float)img[FW_LANE(at, j) + (off + 3)]
 #endif
 #if FW_MODE == FW_MODE_CONSTANT
 #define FW_CHANNEL(k, _) acc##k += wgt * select((fw_fv)(cval.s##k), FW_VALUE(k, at), in);
@@ -572,19 +573,53 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
         fw_fv wgt = y##w##j * x##w##i;               \
         fw_iv at = row##j + col##i;                  \
         fw_iv in = row_in##j & col_in##i;            \
+        const int off = 0;                           \
         FW_TAP_LOAD(at)                              \
         FW_EACH_C(FW_CHANNEL, _)                     \
     }
 #define FW_ROW_TAPS(j) FW_EACH_TAP(FW_TAP, j)
+/* FW_TAP where every lane's taps lie inside the image (fw_sample's
+ * interior path): no border index, no cval, and the tap's column added to
+ * each lane's address as a constant (PoCL then extracts one address per
+ * lane and row, not per tap). The same sums in the same order as FW_TAP,
+ * so the same values bit for bit. */
+#define FW_TAP_IN(i, j)                              \
+    {                                                \
+        fw_fv wgt = y##w##j * x##w##i;               \
+        const int off = i * FW_C;                    \
+        FW_TAP_LOAD(at)                              \
+        FW_EACH_C(FW_CHANNEL_IN, _)                  \
+    }
+#define FW_CHANNEL_IN(k, _) acc##k += wgt * FW_VALUE(k, at);
+#define FW_ROW_TAPS_IN(j)                            \
+    {                                                \
+        fw_iv at = at0 + j * (w * FW_C);             \
+        FW_EACH_TAP(FW_TAP_IN, j)                    \
+    }
+#if FW_ORDER == 0
+#define FW_LAST_TAP(p) p##0
+#elif FW_ORDER == 1
+#define FW_LAST_TAP(p) p##1
+#else
+#define FW_LAST_TAP(p) p##3
+#endif
+/* true in every lane (vector comparisons give -1 per true lane, scalar ones 1) */
+#if FW_VN == 1
+#define FW_ALL(v) (v)
+#else
+#define FW_ALL(v) all(v)
+#endif
 /* channel values at FW_VN pixels; c##k for k < FW_C are used */
 typedef struct {
     fw_fv c0, c1, c2, c3;
 } fw_pxv;
 
 /* _sampling.sample at FW_VN positions (sx, sy): the values before
- * rounding. Branch-free: every tap's index is made valid, so its load is
- * unconditional; in constant mode the value is then replaced by cval
- * outside the image. */
+ * rounding. Where all lanes' taps lie inside the image (most of a warp),
+ * the interior path reads them directly; elsewhere every tap's index is
+ * made valid by the border mode, branch-free, so its load is
+ * unconditional, and in constant mode the value is then replaced by cval
+ * outside the image. Both give the same values bit for bit. */
 FW_FN fw_pxv fw_sample(__global const FW_T *img, int w, int h, fw_fv sx, fw_fv sy, float4 cval)
 {
     /* beyond FW_COORD_LIMIT (or NaN) counts as outside: cval */
@@ -593,8 +628,14 @@ FW_FN fw_pxv fw_sample(__global const FW_T *img, int w, int h, fw_fv sx, fw_fv s
     fw_fv y = select((fw_fv)0.0f, sy, finite);
     FW_TAPS_1D(x, x)
     FW_TAPS_1D(y, y)
-    FW_EACH_TAP(FW_INDEX, _)
     fw_fv acc0 = 0.0f, acc1 = 0.0f, acc2 = 0.0f, acc3 = 0.0f;
+    if (FW_ALL(finite & (x0 >= 0) & (FW_LAST_TAP(x) < w) & (y0 >= 0) & (FW_LAST_TAP(y) < h))) {
+        fw_iv at0 = y0 * (w * FW_C) + x0 * FW_C;
+        FW_EACH_ROW(FW_ROW_TAPS_IN)
+        fw_pxv out = {acc0, acc1, acc2, acc3};
+        return out;
+    }
+    FW_EACH_TAP(FW_INDEX, _)
     FW_EACH_ROW(FW_ROW_TAPS)
     fw_pxv out = {select((fw_fv)cval.s0, acc0, finite), select((fw_fv)cval.s1, acc1, finite),
                   select((fw_fv)cval.s2, acc2, finite), select((fw_fv)cval.s3, acc3, finite)};

@@ -39,6 +39,7 @@ from ..block.codegen import opencl_preamble
 from ..block.sampling_rules import MODES
 from .lru import LruCache
 from .opencl_prepared import IMAGE_SLACK, ZERO_COPY_MIN_BYTES, BoundMap, JobCache
+from .opencl_tiles import global_size, tiled_program
 
 ENV_DEVICE = "FPIWARP_OPENCL_DEVICE"
 _SOURCE, _HEADER = "fpiwarp.cl", "fpiwarp_map.h"
@@ -405,7 +406,7 @@ class DeviceWarp:
         self.out = np.empty((oh, ow, c), dtype=image.dtype) if out is None else out
         self._cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self._sampling = (image.dtype, c, order, mode, ow, antialias)  # chosen with the map's kind by set_map
-        self.local_x = launch_width(be, ow)
+        self.local = None  # the work-group tile, with the kernel
         if isinstance(image, np.ndarray):
             self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
             cl.enqueue_copy(be.queue, self._src, image)
@@ -427,7 +428,7 @@ class DeviceWarp:
         be = self.backend
         (h, w, _), (oh, ow) = self.image_shape, self.output_shape
         block, kind = be._upload_block(transform.inverse)
-        name, options, _ = be.image_program(*self._sampling, kind)
+        name, options, self.local = tiled_program(be, *self._sampling, kind)
         kern = be.kernel(name, options)
         kern.set_args(block, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), self._cval4)
         self._kernel = kern
@@ -435,9 +436,7 @@ class DeviceWarp:
     def launch(self):
         """Enqueue the kernel over the output; returns without waiting."""
         be = self.backend
-        oh, ow = self.output_shape
-        cols = -(-ow // self.local_x) * self.local_x
-        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, (cols, oh), (self.local_x, 1))
+        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, global_size(self.local, self.output_shape), self.local)
 
     def finish(self):
         """Wait until the launched kernels are done."""

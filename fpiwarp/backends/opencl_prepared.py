@@ -16,6 +16,7 @@ import numpy as np
 
 from .._errors import SizeLimitError
 from .lru import LruCache
+from .opencl_tiles import global_size, tiled_program
 
 #: Bytes allocated past the source image: sampling reads a pixel of up to
 #: 4 bytes as one 32-bit word, which may run past the last pixel.
@@ -57,11 +58,10 @@ class ClJob:
         if max(h * w, oh * ow) * c >= 2**31:
             raise SizeLimitError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
         self.out_shape, self.dtype = (oh, ow, c), image.dtype
-        name, options, local_x = be.image_program(image.dtype, c, order, mode, ow, antialias, kind)
+        name, options, self._local = tiled_program(be, image.dtype, c, order, mode, ow, antialias, kind)
         program = be.kernel(name, options).program
         self._kernel = cl.Kernel(program, name)  # its own: arguments stay set between calls
-        self._global = (-(-ow // local_x) * local_x, oh)
-        self._local = (local_x, 1)
+        self._global = global_size(self._local, (oh, ow))
         mf = cl.mem_flags
         self._src = cl.Buffer(be.context, mf.READ_ONLY, image.nbytes + IMAGE_SLACK)
         self._block = None
