@@ -52,13 +52,30 @@
 
 /* out[i] = map(pts[i]) for i < n; points are interleaved (x, y).
  *
- * Work-groups of FW_LOCAL_X points (the host rounds the global size up;
- * padding work-items redo the last point, writing the same value), in
- * phases split by barriers: read the group's x, then y, into local
- * arrays, map them, write x, then y. On a CPU each phase becomes its own
- * loop over work-items and each vectorizes: reading or writing an (x, y)
- * pair in one phase makes a two-lane vector access that stops PoCL's
- * vectorizer. */
+ * Work-groups of FW_LOCAL_X points (the host rounds the global size up),
+ * in phases split by barriers: read the group's points into local arrays
+ * of x and of y, map them, write them back. The map phase is one point
+ * per work-item: on a CPU, PoCL makes it a loop over work-items and
+ * vectorizes it.
+ *
+ * FW_POINT_VN 8 (CPUs): the first FW_LOCAL_X / 8 work-items read and write
+ * 8 points each as vectors, split into x and y (and joined back) by
+ * even/odd shuffles; a work-item at the end of the points does
+ * them one by one, and none writes past the last point. Otherwise (GPUs)
+ * each work-item reads and writes its own point, x then y in phases of
+ * their own (padding work-items redo the last point, writing the same
+ * value): on a CPU a two-lane (x, y) access in one phase would stop
+ * PoCL's vectorizer. */
+#ifndef FW_POINT_VN
+#define FW_POINT_VN 1
+#endif
+#if FW_POINT_VN == 8
+/* 4-element vectors of points (two points each): 256 bits at most, the
+ * widest that builtins take by value without AVX-512 */
+#define FW_POINT_CAT2(a, b) a##b
+#define FW_POINT_CAT(a, b) FW_POINT_CAT2(a, b)
+#define FW_TO_POINT4 FW_POINT_CAT(convert_, FW_POINT_CAT(FW_POINT, 4))
+#endif
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
 void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
                 __global FW_POINT *restrict out, int n FW_BATCH_ARGS)
@@ -66,6 +83,43 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
     FW_BATCH_SELECT(pts, out, 2 * n, 2 * n);
     __local float px[FW_LOCAL_X], py[FW_LOCAL_X];
     int i = get_global_id(0), l = get_local_id(0);
+#if FW_POINT_VN == 8
+    int first = get_group_id(0) * FW_LOCAL_X + 8 * l; /* the work-item's first point, in the I/O phases */
+    bool io = l < FW_LOCAL_X / 8, whole = first + 8 <= n;
+    if (io && whole) {
+        __global const FW_POINT *p = pts + 2 * first;
+        float8 lo = (float8)(convert_float4(vload4(0, p)), convert_float4(vload4(1, p)));
+        float8 hi = (float8)(convert_float4(vload4(2, p)), convert_float4(vload4(3, p)));
+        vstore8((float8)(lo.even, hi.even), l, px);
+        vstore8((float8)(lo.odd, hi.odd), l, py);
+    } else if (io) {
+        for (int k = 0; k < 8; ++k) {
+            int at = min(first + k, n - 1);
+            px[8 * l + k] = (float)pts[2 * at];
+            py[8 * l + k] = (float)pts[2 * at + 1];
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    fw_c w = fw_map(block, fw_cx(px[l], py[l]));
+    px[l] = w.re;
+    py[l] = w.im;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (io && whole) {
+        float8 x = vload8(l, px), y = vload8(l, py);
+        float8 lo = shuffle2(x, y, (uint8)(0, 8, 1, 9, 2, 10, 3, 11));
+        float8 hi = shuffle2(x, y, (uint8)(4, 12, 5, 13, 6, 14, 7, 15));
+        __global FW_POINT *p = out + 2 * first;
+        vstore4(FW_TO_POINT4(lo.lo), 0, p);
+        vstore4(FW_TO_POINT4(lo.hi), 1, p);
+        vstore4(FW_TO_POINT4(hi.lo), 2, p);
+        vstore4(FW_TO_POINT4(hi.hi), 3, p);
+    } else if (io) {
+        for (int k = 0; k < 8 && first + k < n; ++k) {
+            out[2 * (first + k)] = px[8 * l + k];
+            out[2 * (first + k) + 1] = py[8 * l + k];
+        }
+    }
+#else
     int at = min(i, n - 1); /* padding work-items repeat the last point */
     px[l] = (float)pts[2 * at];
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -78,6 +132,7 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
     out[2 * at] = px[l];
     barrier(CLK_LOCAL_MEM_FENCE);
     out[2 * at + 1] = py[l];
+#endif
 }
 
 #ifdef FW_T

@@ -201,6 +201,8 @@ class Backend:
         self.local_x = min(LOCAL_X_CPU if is_cpu else LOCAL_X_OTHER, self.device.max_work_group_size)
         #: pixels one work-item samples at once, in vector types (see fpiwarp_map.h)
         self.lanes = VECTOR_LANES_CPU if is_cpu and self.local_x % VECTOR_LANES_CPU == 0 else 1
+        if self.lanes == 8:  # map_points reads and writes 8 points per work-item as vectors (fpiwarp.cl)
+            self._point_options += ("-DFW_POINT_VN=8",)
         self._kernels = {}  # build options -> {kernel name: Kernel}
         self._buffers = {}  # (role, nbytes) -> Buffer
         self._block_cache = None  # (block bytes, its buffer, kind options) of the last upload
