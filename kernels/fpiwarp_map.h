@@ -603,6 +603,10 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
 #else
 #define FW_LAST_TAP(p) p##3
 #endif
+/* FW_INTERIOR 0 turns the interior path off (tests compare the two paths) */
+#ifndef FW_INTERIOR
+#define FW_INTERIOR 1
+#endif
 /* true in every lane (vector comparisons give -1 per true lane, scalar ones 1) */
 #if FW_VN == 1
 #define FW_ALL(v) (v)
@@ -629,7 +633,7 @@ FW_FN fw_pxv fw_sample(__global const FW_T *img, int w, int h, fw_fv sx, fw_fv s
     FW_TAPS_1D(x, x)
     FW_TAPS_1D(y, y)
     fw_fv acc0 = 0.0f, acc1 = 0.0f, acc2 = 0.0f, acc3 = 0.0f;
-    if (FW_ALL(finite & (x0 >= 0) & (FW_LAST_TAP(x) < w) & (y0 >= 0) & (FW_LAST_TAP(y) < h))) {
+    if (FW_INTERIOR && FW_ALL(finite & (x0 >= 0) & (FW_LAST_TAP(x) < w) & (y0 >= 0) & (FW_LAST_TAP(y) < h))) {
         fw_iv at0 = y0 * (w * FW_C) + x0 * FW_C;
         FW_EACH_ROW(FW_ROW_TAPS_IN)
         fw_pxv out = {acc0, acc1, acc2, acc3};
