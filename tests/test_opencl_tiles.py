@@ -170,3 +170,28 @@ def test_vector_map_points_equal_one_point_per_work_item(opencl_backend, n):
     np.testing.assert_array_equal(got, results[1].astype(np.float64))
     np.testing.assert_allclose(got, fpiwarp.map_points(fpi, pts.astype(np.float64), backend="numpy"),
                                rtol=1e-4, atol=1e-3)
+
+
+@pytest.mark.parametrize("dtype, channels",
+                         [(np.float32, 3), (np.float32, 1), (np.uint16, 2), (np.uint8, 4), (np.uint8, 3)])
+def test_large_sources_read_in_place_give_the_uploaded_output(opencl_backend, dtype, channels):
+    """Sources of 1 MiB or more with pixels of 4 bytes or more are read in
+    place (opencl_prepared.ClJob): the same output as a batch of one (an
+    uploaded copy), for two different images in turn (no stale source) and
+    a read-only one; 3-byte pixels still go by upload (IMAGE_SLACK)."""
+    from fpiwarp.backends import opencl_prepared
+
+    h, w = 1000, 1100 // channels
+    fpi = maps(w, h)["fpi_strong"]
+    for seed in (1, 2):
+        image = make_image((h, w, channels), dtype, seed)
+        image.flags.writeable = seed == 1
+        job = opencl_prepared.ClJob(backend(), image, (h, w), 1, "edge", [0.0] * channels, False,
+                                    backend().block_kind(np.ascontiguousarray(fpi.inverse.params(), np.float32)))
+        in_place = backend().zero_copy and image.nbytes >= opencl_prepared.ZERO_COPY_MIN_BYTES and (
+            channels * image.itemsize >= 4)
+        assert job._src_in_place == in_place and in_place == (channels * image.itemsize >= 4 and backend().zero_copy)
+        got = fpiwarp.warp_image(image, fpi, order=1, mode="edge", backend="opencl")
+        batch = fpiwarp.warp_batch(image[None], fpi, order=1, mode="edge", backend="opencl")[0]
+        np.testing.assert_array_equal(got, batch)
+        assert_images_agree(got, fpiwarp.warp_image(image, fpi, order=1, mode="edge", backend="numpy"), dtype)
