@@ -49,6 +49,7 @@ import weakref
 import numpy as np
 
 from ..block import describe
+from .opencl_tiles import global_size, tiled_program
 
 #: Bytes of input plus output one chunk of a batch holds at most (each
 #: chunk holds at least one image).
@@ -165,9 +166,7 @@ class BatchLaunch:
         self.backend, (self.oh, self.ow) = backend, output_shape
         self.groups = block_groups([t.inverse for t in transforms], n, backend.kind_options)
         self.sampling = (dtype, c, order, mode, self.ow, antialias)
-        self.local_x = backend.image_program(*self.sampling, ())[2]
         self.cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
-        self.cols = -(-self.ow // self.local_x) * self.local_x
         self.keep = []  # the launches' block and index buffers, alive as long as this object
 
     def enqueue(self, queue, src, dst, a, b, wait_for=None):
@@ -176,12 +175,12 @@ class BatchLaunch:
         cl, be, events = self.cl, self.backend, []
         sizes = (np.int32(self.w), np.int32(self.h), dst, np.int32(self.ow), np.int32(self.oh), self.cval4)
         for kind, rows, blocks, which in _launches(be, self.groups, a, b):
-            name, options, _ = be.image_program(*self.sampling, kind)
+            name, options, local = tiled_program(be, *self.sampling, kind)  # the single warp's tiles
             kern = be.kernel(name, (*options, "-DFW_BATCH=1"))
             self.keep.append((_small_buffer(cl, be.context, blocks), _small_buffer(cl, be.context, which)))
             kern.set_args(self.keep[-1][0], src, *sizes, self.keep[-1][1], np.int32(rows))
-            events.append(cl.enqueue_nd_range_kernel(queue, kern, (self.cols, self.oh, len(which)),
-                                                     (self.local_x, 1, 1), wait_for=wait_for))
+            events.append(cl.enqueue_nd_range_kernel(queue, kern, (*global_size(local, (self.oh, self.ow)), len(which)),
+                                                     (*local, 1), wait_for=wait_for))
         return events
 
 
