@@ -87,17 +87,6 @@ vec2 fpw_cdiv(vec2 a, vec2 b) {
 }
 
 // ---- cores -----------------------------------------------------------------
-// tps_pairs.log_ratio: L = log(b / a) of a pair; e = b - a, s = min(a, b),
-// ls, lm the logs of min and max; the atanh series where |e| / s <= 1/4.
-float fpw_pair_log_ratio(float e, float s, float ls, float lm) {
-    float x = s > 0.0 ? abs(e) / s : 1.0;
-    float t = x / (2.0 + x);
-    float t2 = t * t;
-    float series = 2.0 * t * (1.0 + t2 * (0.33333333 + t2 * (0.2 + t2 * 0.14285714)));
-    float mag = x <= 0.25 ? series : lm - ls;
-    return e < 0.0 ? -mag : mag;
-}
-
 // tps_pairs.tps_pairs_core: the n / 2 pairs of n center rows at p, added
 // to val, dz, dzb (see fpiwarp/block/tps_pairs.py for the formulas).
 void fpw_tps_pairs(vec2 p, int base, int n, inout vec2 val, inout vec2 dz, inout vec2 dzb) {
@@ -109,13 +98,23 @@ void fpw_tps_pairs(vec2 p, int base, int n, inout vec2 val, inout vec2 dz, inout
         float a = dot(q, q);
         float b = dot(q2, q2);
         float e = dot(db.xy, db.xy) - 2.0 * dot(q, db.xy);
-        float la = a > 0.0 ? log(a) : 0.0;
-        float lb = b > 0.0 ? log(b) : 0.0;
         bool near_a = a <= b;
         float s = near_a ? a : b;
-        float ls = near_a ? la : lb;
-        float lm = near_a ? lb : la;
-        float big_l = fpw_pair_log_ratio(e, s, ls, lm);
+        float m = near_a ? b : a;
+        // tps_pairs.pair_logs: log(max) from the series where it holds
+        float ae = abs(e);
+        bool ok = s > 0.0 && ae <= 0.25 * s;
+        float t = ok ? ae / (2.0 * s + ae) : 0.0;
+        float t2 = t * t;
+        float series = 2.0 * t * (1.0 + t2 * (0.33333333 + t2 * (0.2 + t2 * 0.14285714)));
+        float ls = s > 0.0 ? log(s) : 0.0;
+        float lm = ls + series;
+        if (!ok) {
+            lm = m > 0.0 ? log(m) : 0.0;
+        }
+        float mag = ok ? series : lm - ls;
+        float big_l = e < 0.0 ? -mag : mag;
+        float la = near_a ? ls : lm;
         val += cw.zw * (0.5 * a * la) + db.zw * (0.5 * (e * lm + s * big_l));
         float g1 = 0.5 * (la + 1.0);
         float gn = 0.5 * (lm + 1.0);
@@ -149,13 +148,41 @@ void fpw_tps(vec2 p, int base, int n, bool paired, out vec2 val, out vec2 dz, ou
     }
 }
 
-// _newton: solve TPS(x) = target from the inverse of the affine part.
+// reference.seed_correction: the seed table's bilinear correction at t,
+// added to the R-linear seed (f clamped to [0, SEED_N - 1], NaN: 0).
+vec2 fpw_seed_node(int base, int k) {
+    vec4 r = fpw_rows[base + FPW_ROW_SEED_GRID + k / 2];
+    return (k % 2) == 0 ? r.xy : r.zw;
+}
+
+vec2 fpw_seed_correction(vec2 t, int base) {
+    vec4 box = fpw_rows[base + FPW_ROW_SEED];
+    vec2 f = (t - box.xy) * box.zw;
+    f.x = f.x > 0.0 ? min(f.x, float(FPW_SEED_N - 1)) : 0.0;
+    f.y = f.y > 0.0 ? min(f.y, float(FPW_SEED_N - 1)) : 0.0;
+    int i = min(int(f.x), FPW_SEED_N - 2);
+    int j = min(int(f.y), FPW_SEED_N - 2);
+    float tx = f.x - float(i);
+    float ty = f.y - float(j);
+    int k = j * FPW_SEED_N + i;
+    vec2 c00 = fpw_seed_node(base, k);
+    vec2 c01 = fpw_seed_node(base, k + 1);
+    vec2 c10 = fpw_seed_node(base, k + FPW_SEED_N);
+    vec2 c11 = fpw_seed_node(base, k + FPW_SEED_N + 1);
+    vec2 bottom = c00 + (c01 - c00) * tx;
+    vec2 top = c10 + (c11 - c10) * tx;
+    return bottom + (top - bottom) * ty;
+}
+
+// _newton: solve TPS(x) = target from the inverse of the affine part plus
+// the seed table's correction.
 // A point stops moving once it is within tol (like the reference's
 // per-point `done`); not converged after `iters` steps gives NaN.
 vec2 fpw_newton(vec2 target, int base, int n, bool paired, int iters, float tol) {
     vec4 mu12 = fpw_rows[base + FPW_ROW_MU12];
     vec2 mu3 = fpw_rows[base + FPW_ROW_MU3].xy;
-    vec2 x = fpw_cmul(mu12.xy, target) + fpw_cmul(mu12.zw, fpw_conj(target)) + mu3;
+    vec2 x = fpw_cmul(mu12.xy, target) + fpw_cmul(mu12.zw, fpw_conj(target)) + mu3
+             + fpw_seed_correction(target, base);
     vec2 val, dz, dzb;
     bool done = false;
     for (int it = 0; it < iters; ++it) {

@@ -106,39 +106,92 @@ FW_FN float fw_log(float v)
 }
 
 /* ---- paired TPS terms (block/tps_pairs.py) ----------------------------- */
-/* L = log(b / a) of a pair (tps_pairs.log_ratio): e = b - a, s = min(a, b),
- * ls, lm the logs of min and max; the atanh series where |e| / s <= 1/4 */
-FW_FN float fw_pair_log_ratio(float e, float s, float ls, float lm)
+/* Eight pairs at a time, one per lane of a float8 (explicit SIMD inside a
+ * work-item: PoCL does not vectorize across work-items through the
+ * data-dependent Newton loop, but compiles float8 arithmetic to vector
+ * instructions). Lane k of group g is pair g + k; rows past n within the
+ * last group are the block's zero rows (W = b2 = 0: a zero term). The
+ * lanes' sums are added at the end: the order of the float32 sum differs
+ * from the reference's, within the parity tolerances. */
+typedef float8 fw_v;
+typedef int8 fw_vi;
+
+/* fw_log on eight lanes (v > 0 finite) */
+FW_FN fw_v fw_log_v(fw_v v)
 {
-    float x = s > 0.0f ? fabs(e) / s : 1.0f;
-    float t = x / (2.0f + x), t2 = t * t;
-    float series = 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
-    float mag = x <= 0.25f ? series : lm - ls;
-    return e < 0.0f ? -mag : mag;
+    fw_vi bits = as_int8(v);
+    fw_vi e = ((bits >> 23) & 255) - 127;
+    fw_v m = as_float8((bits & 0x007fffff) | 0x3f800000);
+    fw_vi big = m > 1.41421356f;
+    m = select(m, 0.5f * m, big);
+    e = e - big; /* big is -1 where true */
+    fw_v s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
+    fw_v poly = 1.0f + s2 * (0.33333333f + s2 * (0.2f + s2 * (0.14285714f + s2 * 0.11111111f)));
+    return 2.0f * s * poly + convert_float8(e) * 0.69314718f;
 }
+
+/* log v, 0 where v == 0 */
+FW_FN fw_v fw_log0_v(fw_v v)
+{
+    return select((fw_v)0.0f, fw_log_v(select((fw_v)1.0f, v, v > 0.0f)), v > 0.0f);
+}
+
+FW_FN float fw_hsum(fw_v v)
+{
+    float4 h = v.lo + v.hi;
+    return (h.x + h.y) + (h.z + h.w);
+}
+
+/* component `comp` of the pairs' first (k = 0) or second (k = 1) rows, lane i: pair g + i */
+#define FW_PAIR8(r, k, comp) \
+    ((fw_v)(r[0 + k].comp, r[2 + k].comp, r[4 + k].comp, r[6 + k].comp, \
+            r[8 + k].comp, r[10 + k].comp, r[12 + k].comp, r[14 + k].comp))
 
 /* the n / 2 pairs of n center rows at p (tps_pairs.tps_pairs_core), added
  * to *val, *dz, *dzb */
 FW_FN void fw_tps_pairs(fw_c p, fw_rows_t rows, int n, fw_c *val, fw_c *dz, fw_c *dzb)
 {
-    for (int j = 0; j < n; j += 2) {
-        fw_c c = fw_at(rows, FW_ROW_CENTERS + j, 0), w = fw_at(rows, FW_ROW_CENTERS + j, 2);
-        fw_c d = fw_at(rows, FW_ROW_CENTERS + j + 1, 0), b2 = fw_at(rows, FW_ROW_CENTERS + j + 1, 2);
-        fw_c q = fw_sub(p, c), q2 = fw_sub(q, d);
-        float a = fw_abs2(q), b = fw_abs2(q2);
-        float e = fw_abs2(d) - 2.0f * (q.re * d.re + q.im * d.im);
-        float la = a > 0.0f ? fw_log(a) : 0.0f, lb = b > 0.0f ? fw_log(b) : 0.0f;
-        bool near_a = a <= b;
-        float s = near_a ? a : b, ls = near_a ? la : lb, lm = near_a ? lb : la;
-        float big_l = fw_pair_log_ratio(e, s, ls, lm);
-        *val = fw_add(*val, fw_add(fw_scale(w, 0.5f * a * la), fw_scale(b2, 0.5f * (e * lm + s * big_l))));
-        float g1 = 0.5f * (la + 1.0f), gn = 0.5f * (lm + 1.0f);
-        fw_c qn = fw_select(near_a, q, q2);
-        fw_c pz = fw_sub(fw_scale(fw_conj(qn), 0.5f * big_l), fw_scale(fw_conj(d), gn));
-        fw_c pzb = fw_sub(fw_scale(qn, 0.5f * big_l), fw_scale(d, gn));
-        *dz = fw_add(*dz, fw_add(fw_mul(w, fw_scale(fw_conj(q), g1)), fw_mul(b2, pz)));
-        *dzb = fw_add(*dzb, fw_add(fw_mul(w, fw_scale(q, g1)), fw_mul(b2, pzb)));
+    fw_v vre = 0.0f, vim = 0.0f, zre = 0.0f, zim = 0.0f, bre = 0.0f, bim = 0.0f;
+    for (int j = 0; j < n; j += 16) {
+        __constant const float4 *r = (__constant const float4 *)rows + FW_ROW_CENTERS + j;
+        fw_v wre = FW_PAIR8(r, 0, z), wim = FW_PAIR8(r, 0, w);
+        fw_v dre = FW_PAIR8(r, 1, x), dim = FW_PAIR8(r, 1, y);
+        fw_v b2re = FW_PAIR8(r, 1, z), b2im = FW_PAIR8(r, 1, w);
+        fw_v qre = p.re - FW_PAIR8(r, 0, x), qim = p.im - FW_PAIR8(r, 0, y);
+        fw_v q2re = qre - dre, q2im = qim - dim;
+        fw_v a = qre * qre + qim * qim, b = q2re * q2re + q2im * q2im;
+        fw_v e = (dre * dre + dim * dim) - 2.0f * (qre * dre + qim * dim);
+        fw_vi near_a = a <= b;
+        fw_v s = select(b, a, near_a), m = select(a, b, near_a);
+        /* tps_pairs.pair_logs: log(max) from the series where it holds */
+        fw_v ae = fabs(e);
+        fw_vi ok = (s > 0.0f) & (ae <= 0.25f * s);
+        fw_v t = select((fw_v)0.0f, ae / select((fw_v)1.0f, 2.0f * s + ae, ok), ok), t2 = t * t;
+        fw_v series = 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
+        fw_v ls = fw_log0_v(s);
+        fw_v lm = ls + series;
+        if (!all(ok))
+            lm = select(fw_log0_v(m), lm, ok);
+        fw_v mag = select(lm - ls, series, ok);
+        fw_v big_l = select(mag, -mag, e < 0.0f);
+        fw_v la = select(lm, ls, near_a);
+        fw_v u = 0.5f * a * la, v2 = 0.5f * (e * lm + s * big_l);
+        vre += wre * u + b2re * v2;
+        vim += wim * u + b2im * v2;
+        fw_v g1 = 0.5f * (la + 1.0f), gn = 0.5f * (lm + 1.0f), hl = 0.5f * big_l;
+        fw_v qnre = select(q2re, qre, near_a), qnim = select(q2im, qim, near_a);
+        /* dz: W conj(q) g1 + b2 (conj(qn) L/2 - conj(d) gn) */
+        fw_v xre = qre * g1, xim = -qim * g1;
+        fw_v yre = qnre * hl - dre * gn, yim = -(qnim * hl - dim * gn);
+        zre += (wre * xre - wim * xim) + (b2re * yre - b2im * yim);
+        zim += (wre * xim + wim * xre) + (b2re * yim + b2im * yre);
+        /* dzb: W q g1 + b2 (qn L/2 - d gn): the same with conj undone */
+        bre += (wre * xre + wim * xim) + (b2re * yre + b2im * yim);
+        bim += (-wre * xim + wim * xre) + (-b2re * yim + b2im * yre);
     }
+    *val = fw_add(*val, fw_cx(fw_hsum(vre), fw_hsum(vim)));
+    *dz = fw_add(*dz, fw_cx(fw_hsum(zre), fw_hsum(zim)));
+    *dzb = fw_add(*dzb, fw_cx(fw_hsum(bre), fw_hsum(bim)));
 }
 
 /* ---- TPS core (reference.tps_core) ------------------------------------- */
@@ -168,7 +221,8 @@ FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, bool paired, fw_c *dz, fw_c *dz
 }
 
 /* ---- Newton inverse of the TPS core (reference.newton) ----------------- */
-/* Per point this is the reference exactly: a converged point keeps its x
+/* Seeded from the R-linear inverse plus the seed table's correction.
+ * Per point this is the reference exactly: a converged point keeps its x
  * (np.where(done, x, x - step)) and here stops evaluating the spline; the
  * last iterate is checked once more, like the reference's for-else. The
  * exit is the loop condition, never a return from inside the loop: PoCL
@@ -176,10 +230,41 @@ FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, bool paired, fw_c *dz, fw_c *dz
  * loop and mixes up work-items that leave it early by a return (wrong
  * points in tests/test_backend_opencl.py's Newton test). Work-items past
  * the end of a row (padding) redo the row's last pixel, Newton included. */
+/* one axis of the seed table (reference.seed_correction): the clamped node
+ * coordinate f (NaN: 0), its cell i and the fraction f - i */
+FW_FN int fw_seed_axis(float v, float lo, float g, float *frac)
+{
+    float f = (v - lo) * g;
+    f = f > 0.0f ? fmin(f, (float)(FW_SEED_N - 1)) : 0.0f;
+    int i = min((int)f, FW_SEED_N - 2);
+    *frac = f - (float)i;
+    return i;
+}
+
+/* correction k of the seed table */
+FW_FN fw_c fw_seed_node(fw_rows_t rows, int k)
+{
+    return fw_at(rows, FW_ROW_SEED_GRID + k / 2, 2 * (k % 2));
+}
+
+/* the seed table's bilinear correction at t (reference.seed_correction) */
+FW_FN fw_c fw_seed_correction(fw_c t, fw_rows_t rows)
+{
+    float tx, ty;
+    int i = fw_seed_axis(t.re, rows[4 * FW_ROW_SEED], rows[4 * FW_ROW_SEED + 2], &tx);
+    int j = fw_seed_axis(t.im, rows[4 * FW_ROW_SEED + 1], rows[4 * FW_ROW_SEED + 3], &ty);
+    int k = j * FW_SEED_N + i;
+    fw_c c00 = fw_seed_node(rows, k), c01 = fw_seed_node(rows, k + 1);
+    fw_c c10 = fw_seed_node(rows, k + FW_SEED_N), c11 = fw_seed_node(rows, k + FW_SEED_N + 1);
+    fw_c bottom = fw_add(c00, fw_scale(fw_sub(c01, c00), tx));
+    fw_c top = fw_add(c10, fw_scale(fw_sub(c11, c10), tx));
+    return fw_add(bottom, fw_scale(fw_sub(top, bottom), ty));
+}
+
 FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters, float tol)
 {
     fw_c mu1 = fw_at(rows, FW_ROW_MU12, 0), mu2 = fw_at(rows, FW_ROW_MU12, 2), mu3 = fw_at(rows, FW_ROW_MU3, 0);
-    fw_c x = fw_rlinear(target, mu1, mu2, mu3);
+    fw_c x = fw_add(fw_rlinear(target, mu1, mu2, mu3), fw_seed_correction(target, rows));
     fw_c dz, dzb;
     bool done = false;
     for (int k = 0; k < iters && !done; ++k) {

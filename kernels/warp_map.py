@@ -39,6 +39,9 @@ ROW_MU12 = wp.constant(CONTRACT["ROW_MU12"])
 ROW_MU3 = wp.constant(CONTRACT["ROW_MU3"])
 ROW_REGIONS = wp.constant(CONTRACT["ROW_REGIONS"])
 ROW_CENTERS = wp.constant(CONTRACT["ROW_CENTERS"])
+ROW_SEED = wp.constant(CONTRACT["ROW_SEED"])
+ROW_SEED_GRID = wp.constant(CONTRACT["ROW_SEED_GRID"])
+SEED_N = wp.constant(CONTRACT["SEED_N"])
 CORE_AFFINE = wp.constant(CONTRACT["CORE_AFFINE"])
 CORE_TPS = wp.constant(CONTRACT["CORE_TPS"])
 CORE_TPS_INVERSE = wp.constant(CONTRACT["CORE_TPS_INVERSE"])
@@ -94,22 +97,6 @@ def abs2(a: wp.vec2):
 
 
 @wp.func
-def pair_log_ratio(e: float, s: float, ls: float, lm: float):
-    """L = log(b / a) of a TPS pair (fpiwarp.block.tps_pairs.log_ratio)."""
-    x = float(1.0)  # noqa: UP018 - a Warp variable, not a literal constant
-    if s > 0.0:
-        x = wp.abs(e) / s
-    t = x / (2.0 + x)
-    t2 = t * t
-    mag = lm - ls
-    if x <= 0.25:
-        mag = 2.0 * t * (1.0 + t2 * (0.33333333 + t2 * (0.2 + t2 * 0.14285714)))
-    if e < 0.0:
-        mag = -mag
-    return mag
-
-
-@wp.func
 def log0(v: float):
     """log v, 0 where v == 0 (a TPS term vanishes at its center)."""
     lg = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
@@ -136,18 +123,32 @@ def tps_pairs_sum(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
         a = abs2(q)
         b = abs2(q2)
         e = abs2(d) - 2.0 * (q[0] * d[0] + q[1] * d[1])
-        la = log0(a)
-        lb = log0(b)
         s = b
-        ls = lb
-        lm = la
+        m = a
         qn = q2
         if a <= b:
             s = a
-            ls = la
-            lm = lb
+            m = b
             qn = q
-        big_l = pair_log_ratio(e, s, ls, lm)
+        # fpiwarp.block.tps_pairs.pair_logs: log(max) from the series where it holds
+        ae = wp.abs(e)
+        ls = log0(s)
+        lm = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+        mag = float(0.0)  # noqa: UP018 - a Warp variable, not a literal constant
+        if s > 0.0 and ae <= 0.25 * s:
+            t = ae / (2.0 * s + ae)
+            t2 = t * t
+            mag = 2.0 * t * (1.0 + t2 * (0.33333333 + t2 * (0.2 + t2 * 0.14285714)))
+            lm = ls + mag
+        else:
+            lm = log0(m)
+            mag = lm - ls
+        big_l = mag
+        if e < 0.0:
+            big_l = -mag
+        la = lm
+        if a <= b:
+            la = ls
         val = val + w * (0.5 * a * la) + b2 * (0.5 * (e * lm + s * big_l))
         g1 = 0.5 * (la + 1.0)
         gn = 0.5 * (lm + 1.0)  # g(b) where a <= b, else g(a)
@@ -207,14 +208,52 @@ def tps_wirtinger(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2, pai
 
 
 @wp.func
+def seed_axis(v: float, lo: float, g: float):
+    """One axis of the seed table (fpiwarp.block.reference.seed_correction):
+    the cell of the clamped node coordinate (NaN: 0) and the fraction."""
+    f = (v - lo) * g
+    if f > 0.0:
+        f = wp.min(f, float(SEED_N - 1))
+    else:
+        f = 0.0
+    i = wp.min(int(f), SEED_N - 2)
+    return i, f - float(i)
+
+
+@wp.func
+def seed_node(blk: wp.array(dtype=wp.vec4), s0: int, k: int):
+    """Correction k of the seed table."""
+    r = blk[s0 + ROW_SEED_GRID + k // 2]
+    if k % 2 == 0:
+        return lo(r)
+    return hi(r)
+
+
+@wp.func
+def seed_correction(blk: wp.array(dtype=wp.vec4), s0: int, t: wp.vec2):
+    """The seed table's bilinear correction at t, added to the R-linear seed."""
+    box = blk[s0 + ROW_SEED]
+    i, tx = seed_axis(t[0], box[0], box[2])
+    j, ty = seed_axis(t[1], box[1], box[3])
+    k = j * SEED_N + i
+    c00 = seed_node(blk, s0, k)
+    c01 = seed_node(blk, s0, k + 1)
+    c10 = seed_node(blk, s0, k + SEED_N)
+    c11 = seed_node(blk, s0, k + SEED_N + 1)
+    bottom = c00 + (c01 - c00) * tx
+    top = c10 + (c11 - c10) * tx
+    return bottom + (top - bottom) * ty
+
+
+@wp.func
 def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2, paired: bool):
-    """Solve TPS(x) = target by Newton from the inverse of the R-linear part;
-    NaN when not within newton_tol after ``iters`` steps."""
+    """Solve TPS(x) = target by Newton from the inverse of the R-linear part
+    plus the seed table's correction; NaN when not within newton_tol after ``iters`` steps."""
     tol = blk[s0 + ROW_L3][2]
     mu1 = lo(blk[s0 + ROW_MU12])
     mu2 = hi(blk[s0 + ROW_MU12])
     mu3 = lo(blk[s0 + ROW_MU3])
-    x = cmul(mu1, target) + cmul(mu2, conj(target)) + mu3
+    x = cmul(mu1, target) + cmul(mu2, conj(target)) + mu3 + seed_correction(blk, s0, target)
     nan2 = wp.vec2(wp.nan, wp.nan)
     for _k in range(iters):
         val, dz, dzb = tps_wirtinger(blk, s0, n, x, paired)

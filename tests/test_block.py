@@ -176,7 +176,7 @@ def test_generated_constants_are_the_contract():
         codegen.KERNEL_CONSTANTS[f"MODE_{m.upper()}"] for m in _sampling.MODES
     ]
     preamble = codegen.opencl_preamble()
-    assert "#define FW_STAGE_ROWS 76\n" in preamble and "#define FW_COORD_LIMIT 16777216.0f\n" in preamble
+    assert "#define FW_STAGE_ROWS 109\n" in preamble and "#define FW_COORD_LIMIT 16777216.0f\n" in preamble
     assert codegen.glsl_defines()["FPW_COORD_LIMIT"] == "16777216.0"
     assert codegen.glsl_defines()["FPW_CORE_TPS_INVERSE"] == str(B.CORE_TPS_INVERSE)
 

@@ -42,11 +42,14 @@ from .layout import (
     ROW_PRE,
     ROW_REGIONS,
     ROW_SCALE,
+    ROW_SEED,
+    ROW_SEED_GRID,
+    SEED_N,
     STAGE_ROWS,
 )
 from .pack import pack, rlinear_inverse
 from .reference import evaluate
-from .stage import LinearPart, MobiusPart, Region, Stage
+from .stage import LinearPart, MobiusPart, Region, SeedTable, Stage
 
 __all__ = [
     "CORES",
@@ -70,11 +73,15 @@ __all__ = [
     "ROW_PRE",
     "ROW_REGIONS",
     "ROW_SCALE",
+    "ROW_SEED",
+    "ROW_SEED_GRID",
+    "SEED_N",
     "STAGE_ROWS",
     "BlockKind",
     "LinearPart",
     "MobiusPart",
     "Region",
+    "SeedTable",
     "Stage",
     "StageKind",
     "describe",

@@ -54,6 +54,30 @@ difference of U computed without cancellation
 (``fpiwarp.block.tps_pairs.pair_terms``). A center without a partner
 is a pair with d = 0 and b2 = 0: its term is exactly the plain one.
 
+The Newton cores (``CORE_TPS_INVERSE``, ``CORE_TPS_PAIRS_INVERSE``) seed
+from a table of exact inverses, after the center rows
+(``ROW_SEED = ROW_CENTERS + MAX_CENTERS``):
+
+=============  ==========================================================
+row            contents
+=============  ==========================================================
+ROW_SEED       ``[lo.re, lo.im, gx, gy]``: the table's box in the core's
+               target plane starts at lo; node (i, j) lies at
+               lo + i / gx + 1j j / gy, i, j in 0 .. SEED_N - 1
+ROW_SEED + 1   ``[c(k).re, c(k).im, c(k+1).re, c(k+1).im]``, k = 2 h:
+  + h          the correction x - (mu1 t + mu2 conj(t) + mu3) at node
+               k = j SEED_N + i, x the host's float64 inverse at the
+               node t (0 where the host has none)
+=============  ==========================================================
+
+The seed at a target t is the R-linear seed plus the bilinear interpolation
+of the corrections, with fx = (t.re - lo.re) gx clamped to [0, SEED_N - 1]
+(NaN: 0), i = min(floor(fx), SEED_N - 2) (fy, j alike): beyond the box the
+edge's corrections continue. All-zero rows (gx = gy = 0, no corrections)
+give the plain R-linear seed. With the table a Newton point typically
+converges on its second evaluation (one step) instead of its third, and the
+seed lies on the right branch where the R-linear one may start in a fold.
+
 Evaluating one stage on a point z (:func:`fpiwarp.block.reference.evaluate`
 is the reference every kernel mirrors line by line):
 
@@ -66,7 +90,8 @@ is the reference every kernel mirrors line by line):
    (``CORE_TPS_PAIRS``, ``CORE_TPS_PAIRS_INVERSE``) the same with the
    paired terms above;
    (``CORE_TPS_INVERSE``) solve TPS(x) = p by Newton from
-   x0 = mu1 p + mu2 conj(p) + mu3, at most newton_iters steps, stopping
+   x0 = mu1 p + mu2 conj(p) + mu3 + the table's correction at p (above),
+   at most newton_iters steps, stopping
    once ``|TPS(x) - p| <= newton_tol``; not converged: NaN (outside);
    any other core: the host refuses the block (:func:`describe` raises),
    and a kernel given one anyway returns NaN (outside).
@@ -76,17 +101,21 @@ A result that is not finite is "outside": images give it the border
 treatment (cval).
 """
 
-LAYOUT_VERSION = 1
+LAYOUT_VERSION = 2
 MAX_CENTERS = 64
 MAX_REGIONS = 2
 MAX_STAGES = 8
+#: Nodes per side of a Newton core's seed table (SEED_N² corrections).
+SEED_N = 8
 
 # Row offsets within a stage (see the table above).
 ROW_HEADER, ROW_PRE, ROW_SCALE, ROW_POST = 0, 1, 2, 3
 ROW_L12, ROW_L3, ROW_MU12, ROW_MU3 = 4, 5, 6, 7
 ROW_REGIONS = 8
 ROW_CENTERS = ROW_REGIONS + 2 * MAX_REGIONS
-STAGE_ROWS = ROW_CENTERS + MAX_CENTERS
+ROW_SEED = ROW_CENTERS + MAX_CENTERS
+ROW_SEED_GRID = ROW_SEED + 1
+STAGE_ROWS = ROW_SEED_GRID + SEED_N * SEED_N // 2
 #: Rows of the largest block: the header and MAX_STAGES stages.
 MAX_ROWS = 1 + MAX_STAGES * STAGE_ROWS
 

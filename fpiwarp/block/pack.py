@@ -20,6 +20,9 @@ from .layout import (
     ROW_PRE,
     ROW_REGIONS,
     ROW_SCALE,
+    ROW_SEED,
+    ROW_SEED_GRID,
+    SEED_N,
     STAGE_ROWS,
 )
 from .stage import LinearPart
@@ -55,6 +58,21 @@ def _put(row, *values):
 def _center_rows(stage):
     """Rows the stage's centers take: two per pair for the paired cores."""
     return len(stage.centers) * (2 if stage.core in PAIRED_CORES else 1)
+
+
+def _put_seed(rows, seed):
+    """The seed table's rows (layout: ROW_SEED, ROW_SEED_GRID)."""
+    corr = np.asarray(seed.corrections, dtype=np.complex128)
+    if corr.shape != (SEED_N, SEED_N):
+        raise ValueError(f"a seed table has {SEED_N}x{SEED_N} corrections, got shape {corr.shape}")
+    step = complex(seed.step)
+    if not (step.real > 0 and step.imag > 0 and np.isfinite(step) and np.isfinite(complex(seed.lo))):
+        raise ValueError(f"a seed table needs a finite start and positive steps, got {seed.lo!r}, {seed.step!r}")
+    rows[ROW_SEED] = (seed.lo.real, seed.lo.imag, 1 / step.real, 1 / step.imag)
+    flat = np.where(np.isfinite(corr), corr, 0).reshape(-1)
+    grid = rows[ROW_SEED_GRID : ROW_SEED_GRID + SEED_N * SEED_N // 2]
+    grid[:, 0], grid[:, 1] = flat[0::2].real, flat[0::2].imag
+    grid[:, 2], grid[:, 3] = flat[1::2].real, flat[1::2].imag
 
 
 def _check_stage(stage):
@@ -98,6 +116,8 @@ def pack(stages, dtype=np.float32):
         mu = rlinear_inverse(st.linear)  # the Newton seed
         _put(rows[ROW_MU12], mu.l1, mu.l2)
         _put(rows[ROW_MU3], mu.l3)
+        if st.seed is not None:
+            _put_seed(rows, st.seed)
         for r, reg in enumerate(st.regions):
             _put(rows[ROW_REGIONS + 2 * r], reg.origin, reg.normal)
             _put(rows[ROW_REGIONS + 2 * r + 1], reg.a, reg.b)

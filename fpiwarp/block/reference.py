@@ -24,6 +24,9 @@ from .layout import (
     ROW_PRE,
     ROW_REGIONS,
     ROW_SCALE,
+    ROW_SEED,
+    ROW_SEED_GRID,
+    SEED_N,
 )
 from .tps_pairs import tps_pairs_core
 
@@ -120,12 +123,39 @@ def _pre_core_post(rows, kind, z, dtype):
     return complex_at(rows[ROW_POST], 2) + complex_at(rows[ROW_SCALE], 2) * p / (1 - complex_at(rows[ROW_POST], 0) * p)
 
 
+def seed_correction(target, rows, dtype):
+    """The seed table's bilinear correction at complex targets (layout:
+    ROW_SEED): added to the R-linear seed; 0 for all-zero table rows."""
+    lo_re, lo_im, gx, gy = (dtype(v) for v in rows[ROW_SEED])
+    last = dtype(SEED_N - 1)
+
+    def axis(v, lo, g):
+        with np.errstate(invalid="ignore", over="ignore"):
+            f = ((v - lo) * g).astype(dtype)
+        f = np.where(f > 0, np.minimum(f, last), dtype(0)).astype(dtype)  # NaN -> 0
+        i = np.minimum(np.floor(f), dtype(SEED_N - 2)).astype(np.int64)
+        return i, (f - i).astype(dtype)
+
+    i, tx = axis(target.real, lo_re, gx)
+    j, ty = axis(target.imag, lo_im, gy)
+    grid = rows[ROW_SEED_GRID : ROW_SEED_GRID + SEED_N * SEED_N // 2]
+    nodes = np.stack([grid[:, 0] + 1j * grid[:, 1], grid[:, 2] + 1j * grid[:, 3]], axis=1).reshape(-1)
+    nodes = nodes.astype(target.dtype)
+
+    def at(jj, ii):
+        return nodes[jj * SEED_N + ii]
+
+    bottom = at(j, i) + tx * (at(j, i + 1) - at(j, i))
+    top = at(j + 1, i) + tx * (at(j + 1, i + 1) - at(j + 1, i))
+    return bottom + ty * (top - bottom)
+
+
 def newton(target, rows, n, iters, tol, dtype, paired=False):
     """Solve TPS(x) = target by Newton from the inverse of the R-linear
-    part; NaN where not within ``tol`` after ``iters`` steps. ``paired``:
-    the paired TPS core."""
+    part plus the seed table's correction; NaN where not within ``tol``
+    after ``iters`` steps. ``paired``: the paired TPS core."""
     mu1, mu2, mu3 = complex_at(rows[ROW_MU12], 0), complex_at(rows[ROW_MU12], 2), complex_at(rows[ROW_MU3], 0)
-    x = mu1 * target + mu2 * np.conj(target) + mu3
+    x = mu1 * target + mu2 * np.conj(target) + mu3 + seed_correction(target, rows, dtype)
     done = np.zeros(target.shape, dtype=bool)
     for _ in range(iters):
         val, dz, dzb = tps_core(x, rows, n, dtype, paired)

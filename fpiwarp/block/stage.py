@@ -50,13 +50,26 @@ class Region:
 
 
 @dataclass(frozen=True)
+class SeedTable:
+    """The Newton cores' seed table (rows in :mod:`fpiwarp.block.layout`):
+    node (i, j) at ``lo + i * step.real + 1j * j * step.imag`` holds the
+    correction from the R-linear seed to the exact inverse there;
+    ``corrections`` has shape (SEED_N, SEED_N), indexed [j, i]."""
+
+    lo: complex
+    step: complex
+    corrections: np.ndarray
+
+
+@dataclass(frozen=True)
 class Stage:
     """One evaluation stage: regions, pre-Möbius, core, post-Möbius.
 
     ``core`` is one of :data:`fpiwarp.block.layout.CORES`; ``linear`` is the
     R-linear part of the core (all of it for ``CORE_AFFINE``), ``centers``
     and ``weights`` the TPS terms, ``newton_iters`` and ``newton_tol`` the
-    device Newton of ``CORE_TPS_INVERSE``. For the paired cores
+    device Newton of ``CORE_TPS_INVERSE``, ``seed`` its optional
+    :class:`SeedTable` (None: the R-linear seed alone). For the paired cores
     (:data:`fpiwarp.block.layout.PAIRED_CORES`) ``centers`` and ``weights``
     are each pair's first center c and summed weight W, ``offsets`` and
     ``offset_weights`` its second center's offset d and weight b2 (zero
@@ -74,6 +87,7 @@ class Stage:
     offset_weights: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
     newton_iters: int = 0
     newton_tol: float = 0.0
+    seed: SeedTable | None = None
 
     def __post_init__(self):
         for name, kind in (("pre", MobiusPart), ("linear", LinearPart), ("post", MobiusPart)):

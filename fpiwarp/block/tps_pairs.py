@@ -15,9 +15,13 @@ without cancellation, with a = |p - c|², b = |p - c - d|²:
 
 * e = b - a = |d|² - 2 Re((p - c) conj(d)), from d directly;
 * L = log(b / a) = sign(e) log1p(|e| / s), s = min(a, b): the series
-  2 atanh(t) = log1p(x), t = x / (2 + x), to t⁷ where x <= 1/4 (relative
-  error < 1e-9), else log(max) - log(min) (then |L| > 0.22, and both logs
-  are accurate to a few float32 ulps);
+  2 atanh(t) = log1p(x), t = |e| / (2 s + |e|) = x / (2 + x), to t⁷
+  where 4 |e| <= s (x <= 1/4, relative error < 1e-9; the test needs no
+  division), else log(max) - log(min) (then |L| > 0.22, and both logs are
+  accurate to a few float32 ulps);
+* log(max(a, b)) = log(s) + |L| where the series holds: one logarithm per
+  pair instead of two there (away from the pair's two centers, nearly
+  everywhere: |e| / s is about 2 |d| / |p - c|);
 * b log b - a log a = e log(max(a, b)) + s L.
 
 The Wirtinger derivatives come from the same pieces: with g(A) = ½ (log A + 1),
@@ -36,21 +40,25 @@ import numpy as np
 SERIES_LIMIT = 0.25
 
 
-def log_ratio(e, s, ls, lm, dtype):
-    """L = log(b / a) for e = b - a, s = min(a, b) and the logs ls, lm of
-    min(a, b) and max(a, b) (see the module docstring)."""
-    x = np.abs(e) / np.where(s > 0, s, 1).astype(dtype)
-    x = np.where(s > 0, x, 1).astype(dtype)
-    t = x / (2 + x)
-    t2 = t * t
-    series = 2 * t * (1 + t2 * (dtype(1 / 3) + t2 * (dtype(0.2) + t2 * dtype(1 / 7))))
-    mag = np.where(x <= SERIES_LIMIT, series, lm - ls)
-    return np.where(e < 0, -mag, mag).astype(dtype)
-
-
 def _log0(v):
     """log v, and 0 where v == 0 (as the plain core)."""
     return np.where(v > 0, np.log(np.where(v > 0, v, 1)), 0)
+
+
+def pair_logs(e, s, m, dtype):
+    """(ls, lm, L): the logs of s = min(a, b) and m = max(a, b) and
+    L = log(b / a) for e = b - a (see the module docstring): one logarithm
+    where the series holds (|e| <= s / 4, s > 0), two elsewhere."""
+    ae = np.abs(e).astype(dtype)
+    ok = (s > 0) & (ae <= SERIES_LIMIT * s)
+    t = (ae / np.where(ok, 2 * s + ae, 1)).astype(dtype)
+    t = np.where(ok, t, 0).astype(dtype)
+    t2 = t * t
+    series = (2 * t * (1 + t2 * (dtype(1 / 3) + t2 * (dtype(0.2) + t2 * dtype(1 / 7))))).astype(dtype)
+    ls = _log0(s).astype(dtype)
+    lm = np.where(ok, ls + series, _log0(m)).astype(dtype)
+    mag = np.where(ok, series, lm - ls)
+    return ls, lm, np.where(e < 0, -mag, mag).astype(dtype)
 
 
 def tps_pairs_core(p, rows, n, dtype, centers_row):
@@ -70,14 +78,13 @@ def tps_pairs_core(p, rows, n, dtype, centers_row):
         b = (q2.real**2 + q2.imag**2).astype(dtype)
         dd = dtype(d.real) * dtype(d.real) + dtype(d.imag) * dtype(d.imag)
         e = (dd - 2 * (q.real * dtype(d.real) + q.imag * dtype(d.imag))).astype(dtype)
-        la, lb = _log0(a).astype(dtype), _log0(b).astype(dtype)
         near_a = a <= b
-        s, ls, lm = np.where(near_a, a, b), np.where(near_a, la, lb), np.where(near_a, lb, la)
-        big_l = log_ratio(e, s, ls, lm, dtype)
+        s, m = np.where(near_a, a, b), np.where(near_a, b, a)
+        ls, lm, big_l = pair_logs(e, s, m, dtype)
+        la = np.where(near_a, ls, lm)
         val = val + w * (0.5 * a * la) + b2 * (0.5 * (e * lm + s * big_l))
-        g1, g2 = 0.5 * (la + 1), 0.5 * (lb + 1)
+        g1, gn = 0.5 * (la + 1), 0.5 * (lm + 1)
         qn = np.where(near_a, q, q2)
-        gn = np.where(near_a, g2, g1)
         dz = dz + w * (g1 * np.conj(q)) + b2 * (0.5 * big_l * np.conj(qn) - gn * np.conj(d))
         dzb = dzb + w * (g1 * q) + b2 * (0.5 * big_l * qn - gn * d)
     return val, dz, dzb
