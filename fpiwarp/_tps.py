@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 from ._errors import ArgumentError, InverseNotConvergedError
 from ._linear import RLinear
 from ._tps_pairing import paired_fields
-from ._tps_seed import seed_table
+from ._tps_seed import cached_seed_table
 from ._transform import Transform, unsolved_are_nan
 from .block import CORE_TPS, CORE_TPS_INVERSE, CORE_TPS_PAIRS, CORE_TPS_PAIRS_INVERSE, MAX_CENTERS, LinearPart, Stage
 
@@ -431,13 +431,11 @@ class InverseThinPlateSpline(Transform):
     def stage(self, **kw) -> Stage:
         t = self.tps
         core, terms = t.block_terms(inverse=True)
-        if getattr(self, "_seed", None) is None:  # cached: 64 host inverses
-            self._seed = seed_table(self, t.map_complex(t.centers), LinearPart(*t.lam))
         return Stage(
             core=core,
             linear=LinearPart(*t.lam),
             **terms,
-            newton_iters=DEVICE_ITERS, newton_tol=DEVICE_RTOL * self.scale, seed=self._seed,
+            newton_iters=DEVICE_ITERS, newton_tol=DEVICE_RTOL * self.scale, seed=cached_seed_table(self),
             **kw,
         )
 
