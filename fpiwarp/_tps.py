@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 from ._errors import ArgumentError, InverseNotConvergedError
 from ._linear import RLinear
 from ._tps_pairing import paired_fields
-from ._tps_seed import cached_seed_table
+from ._tps_seed import cached_seed_table, host_seed
 from ._transform import Transform, unsolved_are_nan
 from .block import CORE_TPS, CORE_TPS_INVERSE, CORE_TPS_PAIRS, CORE_TPS_PAIRS_INVERSE, MAX_CENTERS, LinearPart, Stage
 
@@ -305,11 +305,9 @@ class InverseThinPlateSpline(Transform):
         return out.reshape(p.shape)
 
     def _solve(self, target):
-        tps = self.tps
-        mu1, mu2, mu3 = tps.affine_inverse
         size = np.maximum(self.scale, np.abs(target - self.mid))
         tol = HOST_AIM * size
-        x, err = self._newton(mu1 * target + mu2 * np.conj(target) + mu3, target, tol)
+        x, err = self._newton(host_seed(self, target), target, tol)
         bad = ~(err <= HOST_RTOL * size)
         if bad.any():  # the affine seed can sit in a fold outside the region: seed again
             idx = np.flatnonzero(bad)

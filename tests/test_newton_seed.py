@@ -16,6 +16,7 @@ from fpiwarp import ConstrainedFPI, LocalDeformation
 from fpiwarp import block as B
 from fpiwarp._foldover import inside_quad
 from fpiwarp._tps import DEVICE_RTOL
+from fpiwarp._transform import unsolved_as_nan
 from fpiwarp.block.describe import stage_rows
 from fpiwarp.block.reference import complex_at, seed_correction
 
@@ -124,3 +125,24 @@ def test_the_table_is_dropped_where_its_interpolation_is_no_seed():
     f = ConstrainedFPI(*BOTH_SEEDS_FAIL)
     assert not np.any(f.inverse.stages()[0].seed.corrections)
     assert np.any(_local().inverse.stages()[0].seed.corrections)
+
+
+@settings(max_examples=15, deadline=None)
+@given(strong_deformations())
+def test_the_host_inverse_is_the_same_from_the_table(case):
+    """The host Newton seeded from the table (as for a warp's many pixels)
+    finds the same points as from the R-linear seed, to its accuracy."""
+    src, dst, edges = case
+    try:
+        plain, seeded = ConstrainedFPI(src, dst, edges=edges), ConstrainedFPI(src, dst, edges=edges)
+    except ValueError:
+        return
+    seeded.inverse.stages()  # packs the block: builds the seed table
+    assert "seed_tables" in seeded.core.__dict__ and "seed_tables" not in plain.core.__dict__
+    q = seeded(interior(src, 15))
+    with unsolved_as_nan():
+        a, b = plain.inverse(q), seeded.inverse(q)
+    scale = float(np.ptp(src, axis=0).max()) + np.abs(src).max()
+    ok = np.isfinite(a).all(-1)
+    assert ok.mean() > 0.9 and np.array_equal(ok, np.isfinite(b).all(-1))
+    np.testing.assert_allclose(b[ok], a[ok], rtol=0, atol=1e-8 * scale)
