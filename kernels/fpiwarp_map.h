@@ -148,8 +148,9 @@ FW_FN float fw_hsum(fw_v v)
             r[8 + k].comp, r[10 + k].comp, r[12 + k].comp, r[14 + k].comp))
 
 /* the n / 2 pairs of n center rows at p (tps_pairs.tps_pairs_core), added
- * to *val, *dz, *dzb */
-FW_FN void fw_tps_pairs(fw_c p, fw_rows_t rows, int n, fw_c *val, fw_c *dz, fw_c *dzb)
+ * to *val, and with `deriv` to *dz, *dzb (without: the value alone, for
+ * Newton's convergence checks) */
+FW_FN void fw_tps_pairs(fw_c p, fw_rows_t rows, int n, bool deriv, fw_c *val, fw_c *dz, fw_c *dzb)
 {
     fw_v vre = 0.0f, vim = 0.0f, zre = 0.0f, zim = 0.0f, bre = 0.0f, bim = 0.0f;
     for (int j = 0; j < n; j += 16) {
@@ -178,6 +179,8 @@ FW_FN void fw_tps_pairs(fw_c p, fw_rows_t rows, int n, fw_c *val, fw_c *dz, fw_c
         fw_v u = 0.5f * a * la, v2 = 0.5f * (e * lm + s * big_l);
         vre += wre * u + b2re * v2;
         vim += wim * u + b2im * v2;
+        if (!deriv)
+            continue;
         fw_v g1 = 0.5f * (la + 1.0f), gn = 0.5f * (lm + 1.0f), hl = 0.5f * big_l;
         fw_v qnre = select(q2re, qre, near_a), qnim = select(q2im, qim, near_a);
         /* dz: W conj(q) g1 + b2 (conj(qn) L/2 - conj(d) gn) */
@@ -190,21 +193,24 @@ FW_FN void fw_tps_pairs(fw_c p, fw_rows_t rows, int n, fw_c *val, fw_c *dz, fw_c
         bim += (-wre * xim + wim * xre) + (-b2re * yim + b2im * yre);
     }
     *val = fw_add(*val, fw_cx(fw_hsum(vre), fw_hsum(vim)));
-    *dz = fw_add(*dz, fw_cx(fw_hsum(zre), fw_hsum(zim)));
-    *dzb = fw_add(*dzb, fw_cx(fw_hsum(bre), fw_hsum(bim)));
+    if (deriv) {
+        *dz = fw_add(*dz, fw_cx(fw_hsum(zre), fw_hsum(zim)));
+        *dzb = fw_add(*dzb, fw_cx(fw_hsum(bre), fw_hsum(bim)));
+    }
 }
 
 /* ---- TPS core (reference.tps_core) ------------------------------------- */
 /* The TPS core at p, and its Wirtinger derivatives in *dz, *dzb; paired:
- * the center rows are pairs (FW_CORE_TPS_PAIRS, FW_CORE_TPS_PAIRS_INVERSE). */
-FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, bool paired, fw_c *dz, fw_c *dzb)
+ * the center rows are pairs (FW_CORE_TPS_PAIRS, FW_CORE_TPS_PAIRS_INVERSE).
+ * Without `deriv` the paired core leaves the pairs' derivative terms out. */
+FW_FN fw_c fw_tps_d(fw_c p, fw_rows_t rows, int n, bool paired, bool deriv, fw_c *dz, fw_c *dzb)
 {
     fw_c l1 = fw_at(rows, FW_ROW_L12, 0), l2 = fw_at(rows, FW_ROW_L12, 2), l3 = fw_at(rows, FW_ROW_L3, 0);
     fw_c val = fw_rlinear(p, l1, l2, l3);
     *dz = l1;
     *dzb = l2;
     if (paired) {
-        fw_tps_pairs(p, rows, n, &val, dz, dzb);
+        fw_tps_pairs(p, rows, n, deriv, &val, dz, dzb);
         return val;
     }
     for (int j = 0; j < n; ++j) {
@@ -218,6 +224,11 @@ FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, bool paired, fw_c *dz, fw_c *dz
         *dzb = fw_add(*dzb, fw_mul(g, d));
     }
     return val;
+}
+
+FW_FN fw_c fw_tps(fw_c p, fw_rows_t rows, int n, bool paired, fw_c *dz, fw_c *dzb)
+{
+    return fw_tps_d(p, rows, n, paired, true, dz, dzb);
 }
 
 /* ---- Newton inverse of the TPS core (reference.newton) ----------------- */
@@ -268,14 +279,19 @@ FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters,
     fw_c dz, dzb;
     bool done = false;
     for (int k = 0; k < iters && !done; ++k) {
-        fw_c res = fw_sub(fw_tps(x, rows, n, paired, &dz, &dzb), target);
+        /* the seed is rarely within tol: its pass takes the derivatives at
+         * once; a later pass checks the value first and takes them only
+         * for a point that goes on (the same iterates, fewer terms) */
+        fw_c res = fw_sub(fw_tps_d(x, rows, n, paired, k == 0, &dz, &dzb), target);
         done = sqrt(fw_abs2(res)) <= tol;
+        if (!done && k > 0)
+            fw_tps_d(x, rows, n, paired, true, &dz, &dzb);
         float det = fw_abs2(dz) - fw_abs2(dzb);
         fw_c step = fw_scale(fw_sub(fw_mul(fw_conj(dz), res), fw_mul(dzb, fw_conj(res))), 1.0f / det);
         x = fw_select(done, x, fw_sub(x, step));
     }
     if (!done) {
-        fw_c res = fw_sub(fw_tps(x, rows, n, paired, &dz, &dzb), target);
+        fw_c res = fw_sub(fw_tps_d(x, rows, n, paired, false, &dz, &dzb), target);
         done = sqrt(fw_abs2(res)) <= tol;
     }
     return fw_select(done, x, fw_cx(NAN, NAN));
