@@ -106,9 +106,10 @@ def log0(v: float):
 
 
 @wp.func
-def tps_pairs_sum(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
-    """The paired TPS terms at p and their Wirtinger derivatives
-    (fpiwarp.block.tps_pairs.tps_pairs_core): n center rows, n / 2 pairs."""
+def tps_pairs_sum(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2, deriv: bool):
+    """The paired TPS terms at p and, with ``deriv``, their Wirtinger
+    derivatives (fpiwarp.block.tps_pairs.tps_pairs_core): n center rows,
+    n / 2 pairs (without: zero derivatives, the value alone)."""
     val = wp.vec2(0.0, 0.0)
     dz = wp.vec2(0.0, 0.0)
     dzb = wp.vec2(0.0, 0.0)
@@ -150,10 +151,11 @@ def tps_pairs_sum(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2):
         if a <= b:
             la = ls
         val = val + w * (0.5 * a * la) + b2 * (0.5 * (e * lm + s * big_l))
-        g1 = 0.5 * (la + 1.0)
-        gn = 0.5 * (lm + 1.0)  # g(b) where a <= b, else g(a)
-        dz = dz + cmul(w, conj(q) * g1) + cmul(b2, conj(qn) * (0.5 * big_l) - conj(d) * gn)
-        dzb = dzb + cmul(w, q * g1) + cmul(b2, qn * (0.5 * big_l) - d * gn)
+        if deriv:
+            g1 = 0.5 * (la + 1.0)
+            gn = 0.5 * (lm + 1.0)  # g(b) where a <= b, else g(a)
+            dz = dz + cmul(w, conj(q) * g1) + cmul(b2, conj(qn) * (0.5 * big_l) - conj(d) * gn)
+            dzb = dzb + cmul(w, q * g1) + cmul(b2, qn * (0.5 * big_l) - d * gn)
     return val, dz, dzb
 
 
@@ -166,7 +168,7 @@ def tps_value(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2, paired:
     l3 = lo(blk[s0 + ROW_L3])
     val = cmul(l1, p) + cmul(l2, conj(p)) + l3
     if paired:
-        pv, pdz, pdzb = tps_pairs_sum(blk, s0, n, p)
+        pv, pdz, pdzb = tps_pairs_sum(blk, s0, n, p, False)
         return val + pv
     for j in range(n):
         row = blk[s0 + ROW_CENTERS + j]
@@ -190,7 +192,7 @@ def tps_wirtinger(blk: wp.array(dtype=wp.vec4), s0: int, n: int, p: wp.vec2, pai
     dz = l1
     dzb = l2
     if paired:
-        pv, pdz, pdzb = tps_pairs_sum(blk, s0, n, p)
+        pv, pdz, pdzb = tps_pairs_sum(blk, s0, n, p, True)
         return val + pv, dz + pdz, dzb + pdzb
     for j in range(n):
         row = blk[s0 + ROW_CENTERS + j]
@@ -255,10 +257,16 @@ def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target
     mu3 = lo(blk[s0 + ROW_MU3])
     x = cmul(mu1, target) + cmul(mu2, conj(target)) + mu3 + seed_correction(blk, s0, target)
     nan2 = wp.vec2(wp.nan, wp.nan)
-    for _k in range(iters):
+    for k in range(iters):
+        # the seed is rarely within tol: its pass takes the derivatives at
+        # once; a later pass checks the value first and takes them only for
+        # a point that goes on (the same iterates, fewer terms)
+        if k > 0:
+            if wp.sqrt(abs2(tps_value(blk, s0, n, x, paired) - target)) <= tol:
+                return x
         val, dz, dzb = tps_wirtinger(blk, s0, n, x, paired)
         res = val - target
-        if wp.sqrt(abs2(res)) <= tol:
+        if k == 0 and wp.sqrt(abs2(res)) <= tol:
             return x
         det = abs2(dz) - abs2(dzb)
         step = (cmul(conj(dz), res) - cmul(dzb, conj(res))) / det
