@@ -260,7 +260,9 @@ class ThinPlateSpline(Transform):
 
 
 class InverseThinPlateSpline(Transform):
-    """phi⁻¹ by Newton's method, seeded with the inverse of phi's affine part.
+    """phi⁻¹ by Newton's method, seeded with the inverse of phi's affine part
+    plus the bilinear correction of a table of exact inverses (devices; the
+    host for large point sets: :mod:`fpiwarp._tps_seed`).
 
     On the host the iteration (with step halving when a step does not
     reduce the residual) aims at |phi(x) - p| <= 1e-13 · max(scale,
@@ -275,7 +277,7 @@ class InverseThinPlateSpline(Transform):
     preimage outside the region. Non-finite
     inputs (the image of a pole) give non-finite outputs.
 
-    On the device (``CORE_TPS_INVERSE``) plain Newton runs at most
+    On the device (``CORE_TPS_INVERSE``) plain Newton from that seed runs at most
     ``DEVICE_ITERS`` steps to the float32-sane tolerance ``DEVICE_RTOL ·
     scale``; points that do not get there come out NaN, i.e. "outside".
     """
