@@ -25,7 +25,7 @@ also run on the host backends, through a numpy view.
 stacks (N, H, W[, C]), or (N, C, H, W) with ``channels="first"``, and
 point sets (N, ..., 2) of the same kinds the same way (Warp/DLPack/CUDA
 on "warp", pyopencl on "opencl"), one launch per kind of map, in place
-(:mod:`fpiwarp.arrays.batch_path`).
+(``fpiwarp.arrays.batch_path``).
 
 Nothing here imports torch, CuPy or JAX: arrays are recognized by their
 protocols and by the types of libraries already imported
