@@ -12,9 +12,9 @@ backend computes the source position of every output pixel once per
 output size and shares it among the images of that size. A backend whose
 capabilities say ``batches`` warps a whole stack in one call
 (``warp_batch``): "numpy" (one map: one pass for all images), "opencl"
-(one kernel launch per kind of map, :mod:`fpiwarp.backends.opencl_batch`),
-"warp" (likewise, :mod:`fpiwarp.backends.warp_batches`) and "gl" (one
-instanced draw per kind of map, :mod:`fpiwarp.backends.gl.batch`); a
+(one kernel launch per kind of map, ``fpiwarp.backends.opencl_batch``),
+"warp" (likewise, ``fpiwarp.backends.warp_batches``) and "gl" (one
+instanced draw per kind of map, ``fpiwarp.backends.gl.batch``); a
 backend that does not batch gets one ``warp_image`` call per image.
 Either way the result equals the loop of :func:`fpiwarp.warp_image` bit
 for bit.

@@ -20,9 +20,9 @@ def map_points_batch(
     """Map N point sets, ``points[i]`` by ``transforms[i]`` (or all by one map).
 
     On "opencl" the batch is one kernel launch per kind of map
-    (:mod:`fpiwarp.backends.opencl_batch`), on "warp" one launch, on "gl"
+    (``fpiwarp.backends.opencl_batch``), on "warp" one launch, on "gl"
     one transform-feedback pass per kind of map
-    (:mod:`fpiwarp.backends.gl.batch_points`); each set's result equals
+    (``fpiwarp.backends.gl.batch_points``); each set's result equals
     :func:`fpiwarp.map_points` of that set on the same backend, bit for
     bit. "numpy" maps the sets one after the other.
 
