@@ -66,6 +66,23 @@ def gl_backend():
 
 
 @pytest.fixture
+def make_gl_warper(gl_backend):
+    """Makes GLWarpers (options as GLWarper's) in the shared GL context; all are released afterwards."""
+    from fpiwarp.backends.gl.context import shared_context
+    from fpiwarp.backends.gl.warper import GLWarper
+
+    made = []
+
+    def make(**options):
+        made.append(GLWarper(shared_context(), **options))
+        return made[-1]
+
+    yield make
+    for w in made:
+        w.release()
+
+
+@pytest.fixture
 def rng():
     return np.random.default_rng(12345)
 

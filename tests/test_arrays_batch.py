@@ -221,6 +221,10 @@ def test_numpy_stacks_with_out_and_channels_first(rng):
     np.testing.assert_array_equal(out, expected)
     with pytest.raises(fpiwarp.ArgumentError, match="out= shares memory with images"):
         fpiwarp.warp_batch(stack, maps, out=stack)
+    with pytest.raises(fpiwarp.DeviceMismatchError, match="out= is a list; a numpy input is written into a numpy"):
+        fpiwarp.warp_batch(stack, maps, out=[0])  # as warp_image says it
+    with pytest.raises(fpiwarp.DeviceMismatchError, match="out= is a list; a numpy input is written into a numpy"):
+        fpiwarp.warp_image(stack[0], maps, channels="first", out=[0])
     with pytest.raises(fpiwarp.ArgumentError, match=r"out= must be \(3, 3, 8, 9\) uint8"):
         fpiwarp.warp_batch(stack, maps, channels="first", out=np.zeros((3, 8, 9, 3), np.uint8))
 

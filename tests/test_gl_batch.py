@@ -9,22 +9,6 @@ import pytest
 from test_batch_launch import make_map
 
 
-@pytest.fixture
-def warper(gl_backend):
-    from fpiwarp.backends.gl.context import shared_context
-    from fpiwarp.backends.gl.warper import GLWarper
-
-    made = []
-
-    def make(**options):
-        made.append(GLWarper(shared_context(), **options))
-        return made[-1]
-
-    yield make
-    for w in made:
-        w.release()
-
-
 def run(warper, stack, maps, shape, **options):
     """(batch, loop) of warper on the inverse blocks of maps."""
     from fpiwarp.backends.gl import batch
@@ -39,7 +23,7 @@ def run(warper, stack, maps, shape, **options):
 KINDS = ["fpi", "tps", "fpi", "shift", "tps", "compound"]
 
 
-def test_one_draw_per_kind_of_map(warper, rng, monkeypatch):
+def test_one_draw_per_kind_of_map(make_gl_warper, rng, monkeypatch):
     from fpiwarp.backends.gl import batch
 
     stack = rng.integers(0, 256, size=(6, 11, 13, 3), dtype=np.uint8)
@@ -48,45 +32,45 @@ def test_one_draw_per_kind_of_map(warper, rng, monkeypatch):
     real = batch.draw_group
     monkeypatch.setattr(batch, "draw_group", lambda w, p, s, b, idx, *a: draws.append(idx.tolist()) or
                         real(w, p, s, b, idx, *a))
-    got, expected = run(warper(), stack, maps, (9, 15), order=1, mode="edge", cval=np.zeros(3))
+    got, expected = run(make_gl_warper(), stack, maps, (9, 15), order=1, mode="edge", cval=np.zeros(3))
     np.testing.assert_array_equal(got, expected)
     assert sorted(draws) == [[0, 2, 3], [1, 4], [5]]  # an R-linear map is an FPI's kind of program here
     draws.clear()
-    got, expected = run(warper(), stack, maps[:1], (9, 15), order=3, mode="reflect", cval=np.zeros(3))
+    got, expected = run(make_gl_warper(), stack, maps[:1], (9, 15), order=3, mode="reflect", cval=np.zeros(3))
     np.testing.assert_array_equal(got, expected)
     assert draws == [list(range(6))]  # one shared map: one draw
     draws.clear()
-    got, expected = run(warper(specialize=False), stack, maps, (9, 15), order=0, mode="wrap", cval=np.zeros(3))
+    got, expected = run(make_gl_warper(specialize=False), stack, maps, (9, 15), order=0, mode="wrap", cval=np.zeros(3))
     np.testing.assert_array_equal(got, expected)
     assert draws == [list(range(6))]  # a program that reads the kind at run time: one draw for all
 
 
 @pytest.mark.parametrize("shape", [(3, 20), (5, 20), (8, 8)])
-def test_bounded_draws_and_column_tiles(warper, rng, shape):
+def test_bounded_draws_and_column_tiles(make_gl_warper, rng, shape):
     """A size limit of 8 pixels: draws of 8 // rows images, outputs wider
     than 8 in column tiles, still the loop's result."""
     stack = rng.uniform(-1, 2, size=(5, 6, 7, 2)).astype(np.float32)
     maps = [make_map(kind, k, 8, 8) for k, kind in enumerate(KINDS[:5])]
-    got, expected = run(warper(max_texture_size=8), stack, maps, shape, order=1, mode="constant",
+    got, expected = run(make_gl_warper(max_texture_size=8), stack, maps, shape, order=1, mode="constant",
                         cval=np.full(2, 0.5))
     np.testing.assert_array_equal(got, expected)
 
 
-def test_chunks_of_one_image(warper, rng, monkeypatch):
+def test_chunks_of_one_image(make_gl_warper, rng, monkeypatch):
     from fpiwarp.backends.gl import batch
 
     monkeypatch.setattr(batch, "CHUNK_BYTES", 1)
     stack = rng.integers(0, 65536, size=(4, 7, 9, 4), dtype=np.uint16)
     maps = [make_map(kind, k, 9, 7) for k, kind in enumerate(["tps", "fpi", "tps", "tps"])]
-    got, expected = run(warper(), stack, maps, (7, 9), order=1, mode="wrap", cval=np.zeros(4), antialias=True)
+    got, expected = run(make_gl_warper(), stack, maps, (7, 9), order=1, mode="wrap", cval=np.zeros(4), antialias=True)
     np.testing.assert_array_equal(got, expected)
 
 
 @pytest.mark.parametrize("case", ["tiled source", "no storage buffers"])
-def test_image_by_image_fallbacks(warper, rng, monkeypatch, case):
+def test_image_by_image_fallbacks(make_gl_warper, rng, monkeypatch, case):
     from fpiwarp.backends.gl import batch
 
-    w = warper(max_texture_size=8)
+    w = make_gl_warper(max_texture_size=8)
     if case == "no storage buffers":
         monkeypatch.setattr(batch, "supports_batches", lambda ctx: False)
     size = (11, 10) if case == "tiled source" else (6, 7)
@@ -97,11 +81,11 @@ def test_image_by_image_fallbacks(warper, rng, monkeypatch, case):
     np.testing.assert_array_equal(got, expected)
 
 
-def test_the_callers_framebuffer_stays_bound(warper, rng):
+def test_the_callers_framebuffer_stays_bound(make_gl_warper, rng):
     from fpiwarp.backends.gl import batch
     from fpiwarp.backends.gl.context import bound_framebuffer
 
-    w = warper()
+    w = make_gl_warper()
     fbo = w.ctx.simple_framebuffer((4, 4))
     try:
         fbo.use()

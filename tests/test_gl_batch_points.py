@@ -10,23 +10,6 @@ from test_batch_launch import make_map
 KINDS = ["fpi", "tps", "fpi", "shift", "tps_inverse", "compound"]
 
 
-@pytest.fixture
-def warper(gl_backend):
-    """Makes GLWarpers in the shared context, released afterwards."""
-    from fpiwarp.backends.gl.context import shared_context
-    from fpiwarp.backends.gl.warper import GLWarper
-
-    made = []
-
-    def make(**options):
-        made.append(GLWarper(shared_context(), **options))
-        return made[-1]
-
-    yield make
-    for w in made:
-        w.release()
-
-
 def run(warper, pts, maps):
     """(batch, loop) of warper on the blocks of maps."""
     from fpiwarp.backends.gl import batch_points
@@ -48,42 +31,42 @@ def passes(monkeypatch):
     return seen
 
 
-def test_one_pass_per_kind_of_map(warper, rng, passes):
+def test_one_pass_per_kind_of_map(make_gl_warper, rng, passes):
     pts = rng.uniform(-5, 25, size=(6, 7, 2))
     maps = [make_map(kind, k, 20, 15) for k, kind in enumerate(KINDS)]
-    got, expected = run(warper(), pts, maps)
+    got, expected = run(make_gl_warper(), pts, maps)
     np.testing.assert_array_equal(got, expected)
     assert sorted(idx for _, idx in passes) == [[0, 2, 3], [1], [4], [5]]
     passes.clear()
-    got, expected = run(warper(), pts, maps[4:5])
+    got, expected = run(make_gl_warper(), pts, maps[4:5])
     np.testing.assert_array_equal(got, expected)
     assert passes == [(1, list(range(6)))]  # one shared map: one pass, one block
     passes.clear()
-    got, expected = run(warper(specialize=False), pts, maps)
+    got, expected = run(make_gl_warper(specialize=False), pts, maps)
     np.testing.assert_array_equal(got, expected)
     assert passes == [(6, list(range(6)))]  # a program that reads the kind at run time: one pass
 
 
-def test_bounded_passes_and_the_fallback(warper, rng, monkeypatch, passes):
+def test_bounded_passes_and_the_fallback(make_gl_warper, rng, monkeypatch, passes):
     from fpiwarp.backends.gl import batch_points
 
     pts = rng.uniform(-5, 25, size=(5, 3, 2))
     maps = [make_map(kind, k, 20, 15) for k, kind in enumerate(["fpi", "fpi", "tps", "fpi", "tps"])]
     monkeypatch.setattr(batch_points, "sets_per_pass", lambda w, p: 2)
-    got, expected = run(warper(), pts, maps)
+    got, expected = run(make_gl_warper(), pts, maps)
     np.testing.assert_array_equal(got, expected)
     assert sorted(idx for _, idx in passes) == [[0, 1], [2, 4], [3]]
     passes.clear()
     monkeypatch.setattr(batch_points, "supports_batches", lambda ctx: False)
-    got, expected = run(warper(), pts, maps)
+    got, expected = run(make_gl_warper(), pts, maps)
     np.testing.assert_array_equal(got, expected)
     assert passes == []
 
 
-def test_the_callers_framebuffer_stays_bound(warper, rng):
+def test_the_callers_framebuffer_stays_bound(make_gl_warper, rng):
     from fpiwarp.backends.gl.context import bound_framebuffer
 
-    w = warper()
+    w = make_gl_warper()
     fbo = w.ctx.simple_framebuffer((4, 4))
     try:
         fbo.use()

@@ -22,9 +22,12 @@ from .dispatch import (
     Inverted,
     check_channels,
     check_device_warp,
+    check_host_out,
+    copy_points_out,
     hwc_shape,
     mismatch,
     output_layout,
+    overlap_error,
 )
 from .kinds import array_info, choose_backend
 
@@ -91,10 +94,7 @@ def warp_batch(images, transforms, output_shape, *, order, mode, cval, backend, 
 def _host(stack, name, transforms, output_shape, order, mode, cval, antialias, out, channels, host_batch):
     first = channels == "first" and stack.ndim == 4
     if out is not None:
-        if not isinstance(out, np.ndarray):
-            raise ArgumentTypeError(f"out= is a {type(out).__name__}; a numpy stack is warped into a numpy array")
-        if np.shares_memory(out, stack):
-            raise ArgumentError("out= shares memory with images; warp into another array")
+        check_host_out(out, stack, "images")
     result = host_batch(np.moveaxis(stack, 1, 3) if first else stack, transforms, output_shape, order=order,
                         mode=mode, cval=cval, backend=name, antialias=antialias)
     if first:
@@ -121,7 +121,7 @@ def _warp(images, info, transforms, output_shape, order, mode, cval, antialias, 
     layout = (n, *output_layout(oshape, hwc[2], squeeze, channels))
     result, target = warp_path.output_target(backend, info, dtype, layout, out)
     if warp_path.overlaps(arr, target):
-        raise ArgumentError("out= shares memory with images; warp into another array")
+        raise overlap_error("images")
     backend.warp_batch_into(as_nhwc(wp, arr, channels), inverted, oshape, as_nhwc(wp, target, channels),
                             order=order, mode=mode, cval=cval, **options)
     warp_path.settle(backend, out)
@@ -155,7 +155,7 @@ def _opencl(images, transforms, output_shape, order, mode, cval, antialias, out,
         result, target = opencl_path.output_target(be, images.dtype, (n, *output_layout(oshape, c, squeeze,
                                                                                          channels)), out)
         if opencl_path.shares_buffer(images, target):
-            raise ArgumentError("out= shares memory with images; warp into another array")
+            raise overlap_error("images")
         src = _opencl_source(opencl_path, be, images, (n, h, w, c), channels)
         first = channels == "first" and not squeeze
         written = opencl_path.kept(be, "batch_written", (n, *oshape, c), images.dtype) if first else \
@@ -200,15 +200,7 @@ def map_points_batch(transforms, points, backend, out, host_batch):
 
 
 def _host_points(transforms, points, name, out, host_batch):
-    result = host_batch(transforms, points, backend=name)
-    if out is None:
-        return result
-    if not isinstance(out, np.ndarray) or out.shape != result.shape or out.dtype != result.dtype:
-        raise ArgumentError(f"out= must be a numpy array {result.shape} {result.dtype}")
-    if np.shares_memory(out, points):
-        raise ArgumentError("out= shares memory with points; map into another array")
-    np.copyto(out, result)
-    return out
+    return copy_points_out(host_batch(transforms, points, backend=name), out, points)
 
 
 def check_point_maps(transforms, shape, backend):
@@ -240,7 +232,7 @@ def _warp_points(transforms, points, info, out):
     backend = warp_path.backend_on("cpu" if arr.device.is_cpu else str(arr.device.alias))
     result, target = warp_path.output_target(backend, info, dtype, tuple(arr.shape), out)
     if warp_path.overlaps(arr, target):
-        raise ArgumentError("out= shares memory with points; map into another array")
+        raise overlap_error("points")
     if not target.is_contiguous:
         raise ArgumentError("out= must be contiguous for map_points_batch")
     if dtype == np.float64:
@@ -270,6 +262,6 @@ def _opencl_points(transforms, points, out):
     opencl_path.sync_before(points, be)
     result, target = opencl_path.output_target(be, points.dtype, tuple(points.shape), out)
     if opencl_path.shares_buffer(points, target):
-        raise ArgumentError("out= shares memory with points; map into another array")
+        raise overlap_error("points")
     opencl_batch.map_points_arrays(be, maps, points.reshape(n, p, 2), target.reshape(n, p, 2))
     return opencl_path.finish_output(be, result)

@@ -31,6 +31,33 @@ def check_channels(channels):
     return channels
 
 
+def overlap_error(what):
+    """The one-line error for an ``out=`` that shares memory with its input ``what``."""
+    verb = "map" if what == "points" else "warp"
+    return ArgumentError(f"out= shares memory with {what}; {verb} into another array")
+
+
+def check_host_out(out, source, what):
+    """``out=`` of a host (numpy) call: a numpy array apart from ``source``; shape and dtype are checked by the
+    copy's caller."""
+    if not isinstance(out, np.ndarray):
+        raise DeviceMismatchError(f"out= is a {type(out).__name__}; a numpy input is written into a numpy array")
+    if np.shares_memory(out, source):
+        raise overlap_error(what)
+
+
+def copy_points_out(result, out, points):
+    """``result`` of a host map_points call, or copied into the caller's numpy ``out=``."""
+    if out is None:
+        return result
+    if not isinstance(out, np.ndarray) or out.shape != result.shape or out.dtype != result.dtype:
+        raise ArgumentError(f"out= must be a numpy array {result.shape} {result.dtype}")
+    if np.shares_memory(out, points):
+        raise overlap_error("points")
+    np.copyto(out, result)
+    return out
+
+
 def hwc_shape(shape, channels):
     """(H, W, C) and whether the image was 2-D, from a shape as given."""
     if len(shape) == 3 and channels == "first":
@@ -140,10 +167,7 @@ def _host(image, info, transform, output_shape, order, mode, cval, name, backend
     img = np.asarray(image)
     first = channels == "first" and img.ndim == 3
     if out is not None:
-        if not isinstance(out, np.ndarray):
-            raise DeviceMismatchError(f"out= is a {type(out).__name__}; a numpy image is warped into a numpy array")
-        if np.shares_memory(out, img):
-            raise ArgumentError("out= shares memory with the image; warp into another array")
+        check_host_out(out, img, "the image")
     result = host_warp(np.moveaxis(img, 0, 2) if first else img, transform, output_shape, order=order, mode=mode,
                        cval=cval, backend=name, backend_options=backend_options, antialias=antialias)
     if first:
@@ -166,7 +190,7 @@ def _warp(image, info, transform, output_shape, order, mode, cval, backend_optio
     layout = output_layout(oshape, shape[2], squeeze, channels)
     result, target = warp_path.output_target(backend, info, dtype, layout, out)
     if warp_path.overlaps(src, target):
-        raise ArgumentError("out= shares memory with the image; warp into another array")
+        raise overlap_error("the image")
     wp = warp_path.warp_module()
     backend.warp_into(src, inverted, oshape, warp_path.as_hwc(wp, target, channels), order=order, mode=mode,
                       cval=cval, **options)
@@ -192,7 +216,7 @@ def _opencl_locked(image, transform, output_shape, order, mode, cval, backend_op
     layout = output_layout(oshape, shape[2], squeeze, channels)
     result, target = opencl_path.output_target(be, dtype, layout, out)
     if opencl_path.shares_buffer(image, target):
-        raise ArgumentError("out= shares memory with the image; warp into another array")
+        raise overlap_error("the image")
     c = shape[2]
     if channels == "first" and not squeeze:  # (rows, cols, C) on the device, then permuted into the result
         written = opencl_path.kept(be, "written", (*oshape, c), dtype)
@@ -221,15 +245,7 @@ def map_points(transform, points, backend, out, host_map):
     info = array_info(points)
     name = check_backend_name(choose_backend(info, backend))
     if info.kind in ("numpy", "host"):
-        result = host_map(transform, points, backend=name)
-        if out is None:
-            return result
-        if not isinstance(out, np.ndarray) or out.shape != result.shape or out.dtype != result.dtype:
-            raise ArgumentError(f"out= must be a numpy array {result.shape} {result.dtype}")
-        if np.shares_memory(out, np.asarray(points)):
-            raise ArgumentError("out= shares memory with points; map into another array")
-        np.copyto(out, result)
-        return out
+        return copy_points_out(host_map(transform, points, backend=name), out, np.asarray(points))
     if info.kind == "opencl" and name == "opencl":
         from . import opencl_path  # noqa: PLC0415
 

@@ -15,6 +15,7 @@ import threading
 import numpy as np
 
 from .._errors import ArgumentError, DeviceMismatchError
+from .dispatch import overlap_error
 from .kinds import array_info
 
 _CTYPES = {np.dtype(np.uint8): "uchar", np.dtype(np.uint16): "ushort", np.dtype(np.float32): "float",
@@ -202,7 +203,7 @@ def map_points(transform, points, out):
     sync_before(points, be)
     result, target = output_target(be, points.dtype, tuple(points.shape), out)
     if shares_buffer(points, target):
-        raise ArgumentError("out= shares memory with points; map into another array")
+        raise overlap_error("points")
     n = int(np.prod(points.shape[:-1]))
     be.map_points_into(transform, points.reshape(n, 2), target.reshape(n, 2))
     return finish_output(be, result)

@@ -15,6 +15,7 @@ import numpy as np
 
 from .._errors import ArgumentError, ArgumentTypeError, DeviceMismatchError
 from . import convert
+from .dispatch import overlap_error
 from .kinds import array_info
 
 _lock = threading.Lock()
@@ -140,7 +141,7 @@ def map_points(transform, points, info, out):
     count = int(np.prod(arr.shape[:-1]))
     result, target = output_target(backend, info, dtype, tuple(arr.shape), out)
     if overlaps(arr, target):
-        raise ArgumentError("out= shares memory with points; map into another array")
+        raise overlap_error("points")
     if not target.is_contiguous:
         raise ArgumentError("out= must be contiguous for map_points")
     if dtype == np.float64:
