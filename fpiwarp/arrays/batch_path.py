@@ -22,14 +22,12 @@ from .dispatch import (
     Inverted,
     check_channels,
     check_device_warp,
-    check_host_out,
-    copy_points_out,
     hwc_shape,
     mismatch,
     output_layout,
-    overlap_error,
 )
 from .kinds import array_info, choose_backend
+from .outputs import check_host_out, copy_points_out, overlap_error
 
 DEVICE_KINDS = ("warp", "dlpack", "cuda_array_interface")
 

@@ -15,8 +15,8 @@ import threading
 import numpy as np
 
 from .._errors import ArgumentError, DeviceMismatchError
-from .dispatch import overlap_error
 from .kinds import array_info
+from .outputs import overlap_error
 
 _CTYPES = {np.dtype(np.uint8): "uchar", np.dtype(np.uint16): "ushort", np.dtype(np.float32): "float",
            np.dtype(np.float64): "double"}

@@ -15,8 +15,8 @@ import numpy as np
 
 from .._errors import ArgumentError, ArgumentTypeError, DeviceMismatchError
 from . import convert
-from .dispatch import overlap_error
 from .kinds import array_info
+from .outputs import overlap_error
 
 _lock = threading.Lock()
 _backends = {}  # Warp device name -> Backend for devices other than the default one
