@@ -32,7 +32,7 @@ from .backends import get_backend
 from .batch_folders import BatchSummary, list_inputs, run_batch
 from .io import read_image
 from .progress import Progress
-from .validation import check_cval, check_image, check_output_shape, check_warp_arguments
+from .validation import check_image, check_map_size, check_transform, check_warp_arguments
 from .warper import Warper
 
 __all__ = ["BatchSummary", "Progress", "Warper", "list_inputs", "run_batch", "warp_batch", "warp_images"]
@@ -187,22 +187,26 @@ def warp_batch(
     maps = [transforms] if isinstance(transforms, Transform) else list(transforms)
     if not isinstance(transforms, Transform) and len(maps) != n:
         raise ArgumentError(f"got {len(maps)} maps for {n} images; give one map or one per image")
-    warpers = [Warper(t, output_shape, order=order, mode=mode, cval=cval, backend=backend, antialias=antialias)
-               for t in maps]
-    if warpers[0].capabilities.batches:
-        shape = check_output_shape(output_shape, first)
-        for warper in warpers:  # sizes and stages, as warp_image checks them
-            check_warp_arguments(first, warper.transform, shape, order, mode, cval, warper.capabilities, backend)
+    lead = Warper(maps[0], output_shape, order=order, mode=mode, cval=cval, backend=backend, antialias=antialias)
+    if lead.capabilities.batches:
+        # What does not depend on the map is checked once, as warp_image checks it; each map's type, inverse and
+        # stage count per map (a Warper per map cost ~40 % of a batch of small images).
+        checked = check_warp_arguments(first, maps[0], output_shape, order, mode, cval, lead.capabilities, backend,
+                                       antialias=antialias)
+        for t in maps[1:]:
+            check_map_size(check_transform(t, "transforms").inverse, lead.capabilities, backend)
         out = get_backend(backend).warp_batch(
             np.ascontiguousarray(stack.reshape(n, h, w, c)),
             maps,
-            shape,
-            order=warpers[0].order,
-            mode=mode,
-            cval=check_cval(cval, c, stack.dtype),
-            **({"antialias": True} if warpers[0].antialias else {}),
+            checked.output_shape,
+            order=checked.order,
+            mode=checked.mode,
+            cval=checked.cval,
+            **checked.options,
         )
     else:
+        warpers = [lead] + [Warper(t, output_shape, order=order, mode=mode, cval=cval, backend=backend,
+                                   antialias=antialias) for t in maps[1:]]
         chosen = warpers * n if len(warpers) == 1 else warpers
         out = np.stack([chosen[i](stack[i].reshape(h, w, c)) for i in range(n)])
     out = np.ascontiguousarray(out)

@@ -201,6 +201,8 @@ def test_batch_keeps_the_per_image_limits(opencl_backend):
         fpiwarp.warp_image(np.zeros((4, 4), np.uint8), deep, backend="opencl")
     with pytest.raises(fpiwarp.SizeLimitError, match="stages"):
         fpiwarp.warp_batch(np.zeros((2, 4, 4), np.uint8), [fpi, deep], backend="opencl")
+    with pytest.raises(fpiwarp.ArgumentTypeError, match="transforms must be an fpiwarp map .* got str"):
+        fpiwarp.warp_batch(np.zeros((2, 4, 4), np.uint8), [fpi, "shift"], backend="opencl")
 
 
 def test_opencl_refuses_an_unknown_transfer(opencl_backend):
