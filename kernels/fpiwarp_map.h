@@ -570,15 +570,24 @@ typedef uint8 fw_uv;
 
 /* FW_WORD_BITS: where a pixel's channels fit in 32 bits (uchar with up to
  * 4 channels, ushort with up to 2) on a little-endian device, a tap is one
- * 32-bit load, channel k being bits [k * FW_WORD_BITS, ...). The load may
- * read up to 3 bytes past the image: the host allocates 4 more. */
+ * 32-bit load, channel k being bits [k * FW_WORD_BITS, ...).
+ * FW_WORD_TAIL: 1 where a pixel is narrower than the word (FW_WORD_ELEMS
+ * elements), so that the word of a pixel among the last would run past the
+ * image's end. The kernel never reads past it all the same (the host may
+ * hand it the caller's own array): the interior path leaves out the last
+ * row, and the general path moves such a word back to end at the image's
+ * last byte and shifts the pixel down (FW_TAP_LOAD_SAFE). */
 #if defined(__ENDIAN_LITTLE__) && FW_INT && FW_TOP == 255 && FW_C <= 4
 #define FW_WORD_BITS 8
+#define FW_WORD_ELEMS 4
 #elif defined(__ENDIAN_LITTLE__) && FW_INT && FW_TOP == 65535 && FW_C <= 2
 #define FW_WORD_BITS 16
+#define FW_WORD_ELEMS 2
 #else
 #define FW_WORD_BITS 0
+#define FW_WORD_ELEMS FW_C
 #endif
+#define FW_WORD_TAIL (FW_WORD_BITS && FW_C < FW_WORD_ELEMS)
 #if FW_WORD_BITS
 /* a packed struct: the portable unaligned 32-bit load */
 typedef struct __attribute__((packed)) {
@@ -650,6 +659,14 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
 #if FW_WORD_BITS
 #define FW_TAP_LOAD(at) fw_uv word = FW_GATHER(fw_uv, FW_WORD_AT);
 #define FW_WORD_AT(k) ((__global const fw_word *)(img + (FW_LANE(at, k) + off)))->v
+/* the word of the pixel at `at` without reading past the image: read from
+ * min(at, word_last) (word_last, fw_sample's: the last element a whole
+ * word can start at, or 0) and shifted down by the elements moved back */
+#define FW_TAP_LOAD_SAFE(at)                                              \
+    fw_iv wat = min(at, word_last);                                       \
+    fw_uv word = FW_GATHER(fw_uv, FW_WORD_SAFE_AT)                        \
+        >> FW_CONVERT(uint, (at - wat) * FW_WORD_BITS);
+#define FW_WORD_SAFE_AT(k) ((__global const fw_word *)(img + FW_LANE(wat, k)))->v
 #define FW_VALUE(k, at) FW_CONVERT(float, (word >> (FW_WORD_BITS * k)) & (uint)FW_TOP)
 #else
 #define FW_TAP_LOAD(at)
@@ -675,9 +692,14 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
         fw_iv at = row##j + col##i;                  \
         fw_iv in = row_in##j & col_in##i;            \
         const int off = 0;                           \
-        FW_TAP_LOAD(at)                              \
+        FW_TAP_LOAD_GENERAL(at)                      \
         FW_EACH_C(FW_CHANNEL, _)                     \
     }
+#if FW_WORD_TAIL
+#define FW_TAP_LOAD_GENERAL(at) FW_TAP_LOAD_SAFE(at)
+#else
+#define FW_TAP_LOAD_GENERAL(at) FW_TAP_LOAD(at)
+#endif
 #define FW_ROW_TAPS(j) FW_EACH_TAP(FW_TAP, j)
 /* FW_TAP where every lane's taps lie inside the image (fw_sample's
  * interior path): no border index, no cval, and the tap's column added to
@@ -734,12 +756,18 @@ FW_FN fw_pxv fw_sample(__global const FW_T *img, int w, int h, fw_fv sx, fw_fv s
     FW_TAPS_1D(x, x)
     FW_TAPS_1D(y, y)
     fw_fv acc0 = 0.0f, acc1 = 0.0f, acc2 = 0.0f, acc3 = 0.0f;
-    if (FW_INTERIOR && FW_ALL(finite & (x0 >= 0) & (FW_LAST_TAP(x) < w) & (y0 >= 0) & (FW_LAST_TAP(y) < h))) {
+    /* the interior path's words stay inside the image: with FW_WORD_TAIL
+     * its taps leave out the last row (whose last words would run past) */
+    if (FW_INTERIOR && FW_ALL(finite & (x0 >= 0) & (FW_LAST_TAP(x) < w) & (y0 >= 0) &
+                              (FW_LAST_TAP(y) < h - FW_WORD_TAIL))) {
         fw_iv at0 = y0 * (w * FW_C) + x0 * FW_C;
         FW_EACH_ROW(FW_ROW_TAPS_IN)
         fw_pxv out = {acc0, acc1, acc2, acc3};
         return out;
     }
+#if FW_WORD_TAIL
+    const int word_last = max(w * h * FW_C - FW_WORD_ELEMS, 0);
+#endif
     FW_EACH_TAP(FW_INDEX, _)
     FW_EACH_ROW(FW_ROW_TAPS)
     fw_pxv out = {select((fw_fv)cval.s0, acc0, finite), select((fw_fv)cval.s1, acc1, finite),

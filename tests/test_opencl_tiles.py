@@ -14,6 +14,12 @@ Each kernel is also checked against the numpy reference with the parity
 rules of tests/test_backend_parity.py.
 """
 
+import contextlib
+import ctypes
+import math
+import mmap
+import sys
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -172,26 +178,72 @@ def test_vector_map_points_equal_one_point_per_work_item(opencl_backend, n):
                                rtol=1e-4, atol=1e-3)
 
 
-@pytest.mark.parametrize("dtype, channels",
-                         [(np.float32, 3), (np.float32, 1), (np.uint16, 2), (np.uint8, 4), (np.uint8, 3)])
-def test_large_sources_read_in_place_give_the_uploaded_output(opencl_backend, dtype, channels):
-    """Sources of 1 MiB or more with pixels of 4 bytes or more are read in
-    place (opencl_prepared.ClJob): the same output as a batch of one (an
-    uploaded copy), for two different images in turn (no stale source) and
-    a read-only one; 3-byte pixels still go by upload (IMAGE_SLACK)."""
+IN_PLACE_CASES = [(np.float32, 3), (np.float32, 1), (np.uint16, 2), (np.uint16, 1), (np.uint16, 3),
+                  (np.uint8, 1), (np.uint8, 2), (np.uint8, 3), (np.uint8, 4)]
+
+
+def assert_in_place_warp_is_the_uploaded_one(image, transform, mode):
+    """``image`` (1 MiB or more) goes to the kernel in place on a CPU
+    (opencl_prepared.ClJob); its warp equals a batch of one (an uploaded
+    copy with slack) bit for bit and the numpy reference by the parity rules."""
     from fpiwarp.backends import opencl_prepared
 
+    c = image.shape[2]
+    kind = backend().block_kind(np.ascontiguousarray(transform.inverse.params(), np.float32))
+    job = opencl_prepared.ClJob(backend(), image, image.shape[:2], 1, mode, [0.0] * c, False, kind)
+    assert job._src_in_place == backend().zero_copy
+    got = fpiwarp.warp_image(image, transform, order=1, mode=mode, backend="opencl")
+    batch = fpiwarp.warp_batch(image[None], transform, order=1, mode=mode, backend="opencl")[0]
+    np.testing.assert_array_equal(got, batch)
+    assert_images_agree(got, fpiwarp.warp_image(image, transform, order=1, mode=mode, backend="numpy"),
+                        image.dtype.type)
+
+
+@pytest.mark.parametrize("dtype, channels", IN_PLACE_CASES)
+def test_large_sources_read_in_place_give_the_uploaded_output(opencl_backend, dtype, channels):
+    """Sources of 1 MiB or more are read in place whatever their pixel size
+    (the kernel never reads past the last byte, FW_WORD_TAIL): the same
+    output as the uploaded copy, for two different images in turn (no stale
+    source) and a read-only one."""
     h, w = 1000, 1100 // channels
     fpi = maps(w, h)["fpi_strong"]
     for seed in (1, 2):
         image = make_image((h, w, channels), dtype, seed)
         image.flags.writeable = seed == 1
-        job = opencl_prepared.ClJob(backend(), image, (h, w), 1, "edge", [0.0] * channels, False,
-                                    backend().block_kind(np.ascontiguousarray(fpi.inverse.params(), np.float32)))
-        in_place = backend().zero_copy and image.nbytes >= opencl_prepared.ZERO_COPY_MIN_BYTES and (
-            channels * image.itemsize >= 4)
-        assert job._src_in_place == in_place and in_place == (channels * image.itemsize >= 4 and backend().zero_copy)
-        got = fpiwarp.warp_image(image, fpi, order=1, mode="edge", backend="opencl")
-        batch = fpiwarp.warp_batch(image[None], fpi, order=1, mode="edge", backend="opencl")[0]
-        np.testing.assert_array_equal(got, batch)
-        assert_images_agree(got, fpiwarp.warp_image(image, fpi, order=1, mode="edge", backend="numpy"), dtype)
+        assert_in_place_warp_is_the_uploaded_one(image, fpi, "edge")
+
+
+@contextlib.contextmanager
+def array_before_a_guard_page(shape, dtype):
+    """A C-contiguous array of ``shape`` (a whole number of pages) filling
+    anonymous mmap'd pages up to a PROT_NONE page: a read past its last
+    byte faults (the test process dies) instead of reading garbage."""
+    nbytes = math.prod(shape) * np.dtype(dtype).itemsize
+    assert nbytes % mmap.PAGESIZE == 0
+    mem = mmap.mmap(-1, nbytes + mmap.PAGESIZE)
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.mprotect.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    array = np.frombuffer(mem, dtype=dtype, count=math.prod(shape)).reshape(shape)
+    end = array.ctypes.data + nbytes
+    assert libc.mprotect(end, mmap.PAGESIZE, 0) == 0, ctypes.get_errno()  # PROT_NONE
+    try:
+        yield array
+    finally:  # the pages go with the last reference to the array
+        libc.mprotect(end, mmap.PAGESIZE, mmap.PROT_READ | mmap.PROT_WRITE)
+
+
+@pytest.mark.skipif(not hasattr(mmap, "PROT_READ") or sys.platform != "linux", reason="needs mprotect")
+@pytest.mark.parametrize("mode", ["edge", "constant"])
+@pytest.mark.parametrize("dtype, channels", IN_PLACE_CASES[2:])
+def test_sources_read_in_place_are_not_read_past_their_last_byte(opencl_backend, dtype, channels, mode):
+    """A source whose last pixel ends at a page boundary followed by a
+    PROT_NONE page, read in place: a word load of the last pixel(s) that ran
+    past the end would fault. The warps reach that pixel through the
+    general path (taps clamped to the corner, edge mode, or replaced by
+    cval) and next to the last row through the interior path (a sub-pixel
+    shift), and equal the uploaded copy's."""
+    h, w = 1024, 1032 // (channels * np.dtype(dtype).itemsize)  # 1032 KiB: whole pages
+    with array_before_a_guard_page((h, w, channels), dtype) as image:
+        image[...] = make_image((h, w, channels), dtype, 3)
+        for transform in (maps(w, h)["fpi_strong"], maps(w, h)["shift"], RLinear(1, 0, complex(0.5, 0.5))):
+            assert_in_place_warp_is_the_uploaded_one(image, transform, mode)

@@ -6,9 +6,11 @@ the map's kind): its own kernel object with its arguments set, its own
 device buffers for the source and (small) outputs, the launch shape. A
 call copies the image in without waiting, launches, and reads the output
 back: one wait per call. On a CPU, large outputs are written in place and
-large sources of pixels of 4 bytes or more (float32 images) read in place
-(USE_HOST_PTR), with no copy: at 4K float32 RGB the upload was a fifth of
-the call. The block buffer is the job's own too: a new
+large sources read in place (USE_HOST_PTR), with no copy: at 4K float32
+RGB the upload was a fifth of the call. The kernel never reads past a
+source's last byte (uint8/uint16 pixels narrower than the 32-bit word it
+loads them as included: see FW_WORD_TAIL in fpiwarp_map.h), so the
+caller's array needs no slack after it. The block buffer is the job's own too: a new
 block is uploaded only when its bytes differ from the job's last one.
 
 :class:`BoundMap` is the backend's ``bind``: the map's parameter block is
@@ -21,8 +23,9 @@ from .._errors import SizeLimitError
 from .lru import LruCache
 from .opencl_tiles import global_size, tiled_program
 
-#: Bytes allocated past the source image: sampling reads a pixel of up to
-#: 4 bytes as one 32-bit word, which may run past the last pixel.
+#: Bytes allocated past an uploaded source image: sampling reads a pixel of
+#: up to 4 bytes as one 32-bit word, which stays inside any image of 4 bytes
+#: or more (FW_WORD_TAIL) but may run past a smaller one.
 IMAGE_SLACK = 4
 #: Outputs smaller than this are written to a kept device buffer and copied
 #: out: wrapping each new output array in a buffer (zero copy) costs about
@@ -66,11 +69,9 @@ class ClJob:
         self._kernel = cl.Kernel(program, name)  # its own: arguments stay set between calls
         self._global = global_size(self._local, (oh, ow))
         mf = cl.mem_flags
-        #: the kernel reads a large source in place (no upload) where it never
-        #: reads past the last pixel: pixels of 4 bytes or more (smaller ones are
-        #: read as 32-bit words, which needs IMAGE_SLACK bytes after the image)
-        self._src_in_place = (be.zero_copy and image.nbytes >= ZERO_COPY_MIN_BYTES
-                              and c * image.dtype.itemsize >= IMAGE_SLACK)
+        #: the kernel reads a large source in place (no upload): it never reads
+        #: past the last byte of a source of IMAGE_SLACK bytes or more
+        self._src_in_place = be.zero_copy and image.nbytes >= max(ZERO_COPY_MIN_BYTES, IMAGE_SLACK)
         self._src = cl.Buffer(be.context, mf.READ_ONLY, 4 if self._src_in_place else image.nbytes + IMAGE_SLACK)
         self._block = None
         self._block_bytes = None
