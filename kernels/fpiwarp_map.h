@@ -575,8 +575,10 @@ typedef uint8 fw_uv;
  * elements), so that the word of a pixel among the last would run past the
  * image's end. The kernel never reads past it all the same (the host may
  * hand it the caller's own array): the interior path leaves out the last
- * row, and the general path moves such a word back to end at the image's
- * last byte and shifts the pixel down (FW_TAP_LOAD_SAFE). */
+ * row, and the general path, in work-items with a tap in the last row,
+ * moves such a word back to end at the image's last byte and shifts the
+ * pixel down (FW_TAP_LOAD_SAFE). Only an image of under 4 bytes is still
+ * read past (the host uploads those with slack). */
 #if defined(__ENDIAN_LITTLE__) && FW_INT && FW_TOP == 255 && FW_C <= 4
 #define FW_WORD_BITS 8
 #define FW_WORD_ELEMS 4
@@ -686,21 +688,29 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
     fw_iv col_in##i = fw_inside(x##i, w);            \
     fw_iv row##i = fw_border(y##i, h) * (w * FW_C);  \
     fw_iv row_in##i = fw_inside(y##i, h);
-#define FW_TAP(i, j)                                 \
+#define FW_TAP_WITH(i, j, load)                      \
     {                                                \
         fw_fv wgt = y##w##j * x##w##i;               \
         fw_iv at = row##j + col##i;                  \
         fw_iv in = row_in##j & col_in##i;            \
         const int off = 0;                           \
-        FW_TAP_LOAD_GENERAL(at)                      \
+        load(at)                                     \
         FW_EACH_C(FW_CHANNEL, _)                     \
     }
-#if FW_WORD_TAIL
-#define FW_TAP_LOAD_GENERAL(at) FW_TAP_LOAD_SAFE(at)
-#else
-#define FW_TAP_LOAD_GENERAL(at) FW_TAP_LOAD(at)
-#endif
+#define FW_TAP(i, j) FW_TAP_WITH(i, j, FW_TAP_LOAD)
 #define FW_ROW_TAPS(j) FW_EACH_TAP(FW_TAP, j)
+#if FW_WORD_TAIL
+/* the general path's taps where a lane's tap lies in the last row */
+#define FW_TAP_SAFE(i, j) FW_TAP_WITH(i, j, FW_TAP_LOAD_SAFE)
+#define FW_ROW_TAPS_SAFE(j) FW_EACH_TAP(FW_TAP_SAFE, j)
+#if FW_ORDER == 0
+#define FW_ROWS_MAX row0
+#elif FW_ORDER == 1
+#define FW_ROWS_MAX max(row0, row1)
+#else
+#define FW_ROWS_MAX max(max(row0, row1), max(row2, row3))
+#endif
+#endif
 /* FW_TAP where every lane's taps lie inside the image (fw_sample's
  * interior path): no border index, no cval, and the tap's column added to
  * each lane's address as a constant (PoCL then extracts one address per
@@ -765,11 +775,19 @@ FW_FN fw_pxv fw_sample(__global const FW_T *img, int w, int h, fw_fv sx, fw_fv s
         fw_pxv out = {acc0, acc1, acc2, acc3};
         return out;
     }
-#if FW_WORD_TAIL
-    const int word_last = max(w * h * FW_C - FW_WORD_ELEMS, 0);
-#endif
     FW_EACH_TAP(FW_INDEX, _)
+#if FW_WORD_TAIL
+    /* words of taps above the last row end inside the image; the others
+     * are loaded the safe way (the check once per work-item) */
+    if (FW_ALL(FW_ROWS_MAX < (h - 1) * (w * FW_C))) {
+        FW_EACH_ROW(FW_ROW_TAPS)
+    } else {
+        const int word_last = max(w * h * FW_C - FW_WORD_ELEMS, 0);
+        FW_EACH_ROW(FW_ROW_TAPS_SAFE)
+    }
+#else
     FW_EACH_ROW(FW_ROW_TAPS)
+#endif
     fw_pxv out = {select((fw_fv)cval.s0, acc0, finite), select((fw_fv)cval.s1, acc1, finite),
                   select((fw_fv)cval.s2, acc2, finite), select((fw_fv)cval.s3, acc3, finite)};
     return out;
