@@ -45,7 +45,7 @@ def test_pyopencl_arrays_equal_the_numpy_path(cla, rng, monkeypatch, dtype, shap
     img = make_image(rng, shape, dtype)
     kw = {"output_shape": (20, 40), "order": 1, "mode": "wrap"}
     ref = fpiwarp.warp_image(img, FPI, backend="opencl", **kw)
-    arr = cla.to_device(opencl_queue(), img)  # an exact buffer: uint8 sources get their slack on the device
+    arr = cla.to_device(opencl_queue(), img)  # an exact buffer, read in place (no slack needed)
     forbid_host_copies(monkeypatch, cla, min(img.nbytes, ref.nbytes))
     res = fpiwarp.warp_image(arr, FPI, **kw)
     assert isinstance(res, cla.Array) and res.context == arr.context and res.shape == ref.shape
@@ -113,4 +113,23 @@ def test_to_opencl_arrays_are_read_in_place(cla, rng, monkeypatch):
     monkeypatch.setattr(opencl_path, "kept", fails)  # no device copy of the source either
     res = fpiwarp.warp_image(arr, FPI)
     monkeypatch.undo()
+    np.testing.assert_array_equal(res.get(), ref)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 1, 3), (1, 2), (3, 5, 3), (7, 9, 2)])
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_exact_buffers_are_read_in_place_unless_under_a_word(cla, rng, monkeypatch, dtype, shape):
+    """A uint8/uint16 source in an exact buffer is read in place (the
+    sampler never reads past its last byte); only one of under 4 bytes
+    (IMAGE_SLACK) is copied to a buffer with slack. Same output either way."""
+    from fpiwarp.arrays import opencl_path
+
+    img = make_image(rng, shape, dtype)
+    kw = {"output_shape": (6, 7), "order": 1, "mode": "edge"}
+    ref = fpiwarp.warp_image(img, FPI, backend="opencl", **kw)
+    copies = []
+    monkeypatch.setattr(opencl_path, "copy_device", lambda be, dst, src: copies.append(src) or
+                        cla.Array.set(dst, src.get(), queue=be.queue))
+    res = fpiwarp.warp_image(cla.to_device(opencl_queue(), img), FPI, **kw)
+    assert len(copies) == (img.nbytes < 4)
     np.testing.assert_array_equal(res.get(), ref)

@@ -4,10 +4,11 @@ The arrays must live in the opencl backend's context (make them with the
 queue :func:`opencl_queue` returns); the kernel reads the source buffer
 and writes the output buffer in place. Copies made on the device, never
 through the host: (C, H, W) arrays are permuted to (H, W, C) and back by
-a small kernel, and a uint8/uint16 source whose buffer ends less than
-:data:`~fpiwarp.backends.opencl_backend.IMAGE_SLACK` bytes after its last
-pixel (the sampler reads pixels as 32-bit words) is copied into a buffer
-with that slack (:func:`to_opencl` makes arrays with it).
+a small kernel, and a uint8/uint16 source in a buffer of under
+:data:`~fpiwarp.backends.opencl_backend.IMAGE_SLACK` bytes (the sampler
+reads pixels as 32-bit words; in larger images it never reads past the
+last pixel) is copied into a buffer with that slack (:func:`to_opencl`
+makes arrays with it).
 """
 
 import threading
@@ -150,7 +151,7 @@ def image_source(image, channels):
         return be, permute(be, image, "to_last", dst=kept(be, "source", (h, w, c), image.dtype)), image.dtype, shape
     src = image.reshape(*shape[:2], 1) if image.ndim == 2 else image
     pixel = src.dtype.itemsize * src.shape[2]
-    if pixel < 4 and image.base_data.size < image.nbytes + IMAGE_SLACK:  # the sampler would read past the end
+    if pixel < 4 and image.base_data.size < IMAGE_SLACK:  # the sampler's 32-bit word would read past the end
         padded = kept(be, "source", src.shape, src.dtype)
         copy_device(be, padded, src)
         src = padded
