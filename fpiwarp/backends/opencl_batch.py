@@ -49,6 +49,7 @@ import weakref
 import numpy as np
 
 from ..block import describe
+from ..block.many import BlockStack
 from .opencl_tiles import global_size, tiled_program
 
 #: Bytes of input plus output one chunk of a batch holds at most (each
@@ -89,26 +90,13 @@ def block_groups(transforms, n, kind_options):
     (0: one block shared by all images), blocks (k, rows, 4), image
     indices (k,) int32), the kind named by ``kind_options`` (the
     backend's). One map gives one group of all ``n`` images.
-    A block no kernel knows raises ValueError (:func:`describe`) first."""
-    blocks = [np.ascontiguousarray(t.params(), dtype=np.float32) for t in transforms]
-    kinds = [kind_options(describe(b)) for b in blocks]
-    if len(blocks) == 1:
-        return [(kinds[0], 0, blocks[0][None], np.arange(n, dtype=np.int32))]
-    groups = {}
-    for i, kind in enumerate(kinds):
-        groups.setdefault(kind, []).append(i)
-    return [(kind, *_stacked([blocks[i] for i in idx]), np.asarray(idx, dtype=np.int32))
-            for kind, idx in groups.items()]
-
-
-def _stacked(blocks):
-    """(rows, (k, rows, 4) float32): ``blocks`` padded with zero rows to the
-    longest (rows past a block's stages are never read)."""
-    rows = max(b.shape[0] for b in blocks)
-    out = np.zeros((len(blocks), rows, 4), dtype=np.float32)
-    for i, block in enumerate(blocks):
-        out[i, : block.shape[0]] = block
-    return rows, out
+    A block no kernel knows raises ValueError (:func:`describe`) first.
+    The blocks are packed together and each distinct kind described
+    once (:class:`fpiwarp.block.many.BlockStack`)."""
+    stack = BlockStack.of(transforms)
+    if len(stack) == 1:
+        return [(kind_options(describe(stack.array[0])), 0, stack.array, np.arange(n, dtype=np.int32))]
+    return [(kind, *stack.take(idx), idx) for kind, idx in stack.groups(kind_options)]
 
 
 def chunk_ranges(n, item_bytes, limit):

@@ -32,6 +32,7 @@ copied in, warped and copied out, one after the other (``transfer=
 import numpy as np
 
 from ..block import describe
+from ..block.many import BlockStack
 from ..block.sampling_rules import MODES
 
 #: Bytes of input plus output of one chunk of a host stack on CUDA.
@@ -48,10 +49,9 @@ _TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.flo
 def stacked_blocks(transforms):
     """(N or 1, rows, 4) float32 blocks of ``transforms``, each padded with
     zero rows to the longest; a block no kernel knows raises ValueError."""
-    blocks = [np.asarray(t.params(), dtype=np.float32) for t in transforms]
-    for block in blocks:
-        describe(block)
-    return _padded(blocks)
+    stack = BlockStack.of(transforms)
+    stack.groups(lambda kind: None)  # describes each distinct kind once: refuses what no kernel knows
+    return stack.array
 
 
 def kind_groups(transforms, n):
@@ -61,24 +61,14 @@ def kind_groups(transforms, n):
     float32 padded to the longest, images (K,) int32: the group's images,
     image ``images[k]`` warped by block k, or block 0 where B is 1). One
     map gives one group of all ``n`` images reading one block. A block no kernel knows raises
-    ValueError (:func:`describe`) first."""
-    blocks = [np.ascontiguousarray(t.params(), dtype=np.float32) for t in transforms]
-    keys = [tuple((s.core, s.n_regions) for s in describe(b).stages) for b in blocks]
-    if len(blocks) == 1:
-        return [(keys[0], blocks[0][None], np.arange(n, dtype=np.int32))]
-    groups = {}
-    for i, key in enumerate(keys):
-        groups.setdefault(key, []).append(i)
-    return [(key, _padded([blocks[i] for i in idx]), np.asarray(idx, dtype=np.int32)) for key, idx in groups.items()]
-
-
-def _padded(blocks):
-    """(B, rows, 4) float32: ``blocks`` padded with zero rows to the longest."""
-    rows = max(b.shape[0] for b in blocks)
-    out = np.zeros((len(blocks), rows, 4), dtype=np.float32)
-    for i, block in enumerate(blocks):
-        out[i, : block.shape[0]] = block
-    return out
+    ValueError (:func:`describe`) first. The blocks are packed together and
+    each distinct kind described once (:class:`fpiwarp.block.many.BlockStack`)."""
+    stack = BlockStack.of(transforms)
+    if len(stack) == 1:
+        key = tuple((s.core, s.n_regions) for s in describe(stack.array[0]).stages)
+        return [(key, stack.array, np.arange(n, dtype=np.int32))]
+    groups = stack.groups(lambda kind: tuple((s.core, s.n_regions) for s in kind.stages))
+    return [(key, stack.take(idx)[1], idx) for key, idx in groups]
 
 
 def _ranges(n, item_bytes):

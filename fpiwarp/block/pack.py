@@ -75,7 +75,8 @@ def _put_seed(rows, seed):
     grid[:, 2], grid[:, 3] = flat[1::2].real, flat[1::2].imag
 
 
-def _check_stage(stage):
+def check_stage(stage):
+    """Refuse a stage the block cannot hold (ValueError naming the problem)."""
     if stage.core not in CORES.values():
         raise ValueError(f"unknown core {stage.core!r}; the kernels know {CORES}")
     if _center_rows(stage) > MAX_CENTERS:
@@ -88,6 +89,25 @@ def _check_stage(stage):
         raise ValueError(f"a stage's pre-Möbius has no offset (the block has no row for it), got {stage.pre}")
     if stage.post.center != 0:
         raise ValueError(f"a stage's post-Möbius is centered at 0, got {stage.post}")
+
+
+def write_tables(rows, st):
+    """Write stage ``st``'s seed table, regions and TPS centers into its
+    rows (float64, zero where the stage has none); the rows before
+    ROW_REGIONS are :func:`pack`'s."""
+    n = _center_rows(st)
+    if st.seed is not None:
+        _put_seed(rows, st.seed)
+    for r, reg in enumerate(st.regions):
+        _put(rows[ROW_REGIONS + 2 * r], reg.origin, reg.normal)
+        _put(rows[ROW_REGIONS + 2 * r + 1], reg.a, reg.b)
+    if st.core in PAIRED_CORES:
+        for j in range(len(st.centers)):
+            _put(rows[ROW_CENTERS + 2 * j], st.centers[j], st.weights[j])
+            _put(rows[ROW_CENTERS + 2 * j + 1], st.offsets[j], st.offset_weights[j])
+    else:
+        for j in range(n):
+            _put(rows[ROW_CENTERS + j], st.centers[j], st.weights[j])
 
 
 def pack(stages, dtype=np.float32):
@@ -103,7 +123,7 @@ def pack(stages, dtype=np.float32):
     block = np.zeros((1 + len(stages) * STAGE_ROWS, 4), dtype=np.float64)
     block[0, :2] = (len(stages), LAYOUT_VERSION)
     for k, st in enumerate(stages):
-        _check_stage(st)
+        check_stage(st)
         rows = block[1 + k * STAGE_ROWS : 1 + (k + 1) * STAGE_ROWS]
         n = _center_rows(st)
         rows[ROW_HEADER] = (st.core, n, len(st.regions), st.newton_iters)
@@ -116,16 +136,5 @@ def pack(stages, dtype=np.float32):
         mu = rlinear_inverse(st.linear)  # the Newton seed
         _put(rows[ROW_MU12], mu.l1, mu.l2)
         _put(rows[ROW_MU3], mu.l3)
-        if st.seed is not None:
-            _put_seed(rows, st.seed)
-        for r, reg in enumerate(st.regions):
-            _put(rows[ROW_REGIONS + 2 * r], reg.origin, reg.normal)
-            _put(rows[ROW_REGIONS + 2 * r + 1], reg.a, reg.b)
-        if st.core in PAIRED_CORES:
-            for j in range(len(st.centers)):
-                _put(rows[ROW_CENTERS + 2 * j], st.centers[j], st.weights[j])
-                _put(rows[ROW_CENTERS + 2 * j + 1], st.offsets[j], st.offset_weights[j])
-        else:
-            for j in range(n):
-                _put(rows[ROW_CENTERS + j], st.centers[j], st.weights[j])
+        write_tables(rows, st)
     return block.astype(dtype)

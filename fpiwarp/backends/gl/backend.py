@@ -4,6 +4,7 @@ mesh path as a function of the public API (:func:`warp_image_mesh`)."""
 import numpy as np
 
 from ...block import describe
+from ...block.many import BlockStack
 from ...validation import (
     check_cval,
     check_image,
@@ -61,7 +62,7 @@ class Backend:
         from .batch import warp_batch  # noqa: PLC0415 - loaded with the first batch
 
         check_thread()
-        blocks = [t.inverse.params() for t in transforms]
+        blocks = BlockStack.of([t.inverse for t in transforms])
         return warp_batch(self.warper, stack, blocks, output_shape, order=order, mode=mode, cval=cval,
                           antialias=antialias)
 
@@ -71,7 +72,7 @@ class Backend:
         from .batch_points import map_points_batch  # noqa: PLC0415 - loaded with the first batch
 
         check_thread()
-        return map_points_batch(self.warper, [t.params() for t in transforms], points)
+        return map_points_batch(self.warper, BlockStack.of(transforms), points)
 
     def bind(self, transform):
         """``transform`` prepared for many images: its inverse's block packed

@@ -27,6 +27,7 @@ import moderngl
 import numpy as np
 
 from ...block import describe
+from ...block.many import BlockStack
 from .context import bound_framebuffer
 from .programs import MAX_ROWS, set_uniform
 from .tiling import SOURCE_TEXTURE_DTYPES, tiles
@@ -45,20 +46,19 @@ def supports_batches(ctx):
             and (info.get("GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS") or 0) > 0)
 
 
-def kind_groups(blocks, n, specialize):
+def kind_groups(stack, n, specialize):
     """[(stages, is_short, indices of the images, whether each has its own
     block)]: the images grouped by the kind of their map (one group when
-    not specializing, or for one map shared by all ``n`` images)."""
-    kinds = [describe(b) for b in blocks]
-    if len(blocks) == 1:
-        kind = kinds[0]
+    not specializing, or for one map shared by all ``n`` images).
+    ``stack``: a :class:`~fpiwarp.block.many.BlockStack`, each distinct kind
+    described once."""
+    if len(stack) == 1:
+        kind = describe(stack.array[0, : stack.rows[0]])
         stages = tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None
         return [(stages, specialize and kind.is_short, np.arange(n), False)]
-    groups = {}
-    for i, kind in enumerate(kinds):
-        stages = tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None
-        groups.setdefault((stages, specialize and kind.is_short), []).append(i)
-    return [(stages, short, np.array(idx), True) for (stages, short), idx in groups.items()]
+    groups = stack.groups(lambda kind: (tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None,
+                                        specialize and kind.is_short))
+    return [(stages, short, idx.astype(np.intp), True) for (stages, short), idx in groups]
 
 
 def images_per_draw(warper, image_shape, output_shape, itemsize):
@@ -73,12 +73,14 @@ def images_per_draw(warper, image_shape, output_shape, itemsize):
 
 def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antialias=False):
     """An (N, H, W, C) stack warped by the maps from output to source
-    whose parameter blocks are ``blocks`` (one for all or one per image):
+    whose parameter blocks are ``blocks`` (one for all or one per image, a
+    list or a :class:`~fpiwarp.block.many.BlockStack`):
     (N, rows, cols, C), equal to the loop of ``warper.warp_block``."""
     stack = np.ascontiguousarray(stack)
     n, h, w, c = stack.shape
     oh, ow = (int(v) for v in output_shape)
-    blocks = [np.ascontiguousarray(b, dtype=np.float32) for b in blocks]
+    stack_of_blocks = BlockStack.from_blocks(blocks)
+    blocks = stack_of_blocks.blocks()
     cval = np.zeros(c) if cval is None else np.broadcast_to(np.asarray(cval, np.float64), (c,))
     if h > warper.max_size or w > warper.max_size or oh > warper.max_size or not supports_batches(warper.ctx):
         maps = blocks * n if len(blocks) == 1 else blocks
@@ -90,7 +92,7 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
         caller = warper.targets.dummy
     try:
         per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize)
-        for stages, short, idx, own in kind_groups(blocks, n, warper.specialize):
+        for stages, short, idx, own in kind_groups(stack_of_blocks, n, warper.specialize):
             warper.short_map = short
             key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias)
             prog = warper.program(key.with_changes(flags=key.flags + ("FPW_BATCH",)))
@@ -101,7 +103,8 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
             draws = -(-len(idx) // per_draw)
             size = -(-len(idx) // draws)  # draws of equal size: one texture and target for all
             for a in range(0, len(idx), size):
-                draw_group(warper, prog, stack, blocks, idx[a:a + size], out, mode, packs, own, size)
+                draw_group(warper, prog, stack, stack_of_blocks.array, idx[a:a + size], out, mode, packs, own,
+                           size)
     finally:
         warper.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
         caller.use()
@@ -120,7 +123,8 @@ def set_sampling_values(prog, stack, output_shape, cval, own):
 
 
 def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own, size):
-    """One instanced draw: images ``idx`` of ``stack`` into ``out[idx]``,
+    """One instanced draw: images ``idx`` of ``stack`` into ``out[idx]``
+    (``blocks``: the (N or 1, rows, 4) stacked blocks),
     in a texture array and a target for ``size`` images (several draws
     only where the output is wider than the size limit)."""
     _, h, w, c = stack.shape
@@ -132,10 +136,9 @@ def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own, size):
     layers.repeat_x = layers.repeat_y = mode == "wrap"  # where textureGather places the taps
     contiguous = idx[-1] - idx[0] == m - 1
     layers.write(stack[idx[0]:idx[0] + m] if contiguous else stack[idx], viewport=(0, 0, 0, w, h, m))
-    mine = [blocks[i] for i in idx] if own else blocks[:1]
+    mine = blocks[idx] if own else blocks[:1]  # (k, rows, 4), zero rows past each block
     stacked = np.zeros((len(mine), MAX_ROWS, 4), np.float32)
-    for j, b in enumerate(mine):
-        stacked[j, :len(b)] = b
+    stacked[:, : mine.shape[1]] = mine
     ssbo = targets.cached("batch_blocks", stacked.nbytes, lambda: warper.ctx.buffer(reserve=stacked.nbytes))
     ssbo.write(stacked.tobytes())
     ssbo.bind_to_storage_buffer(BATCH_BINDING)

@@ -15,6 +15,7 @@ without storage buffers map the sets one after the other.
 import moderngl
 import numpy as np
 
+from ...block.many import BlockStack
 from .batch import BATCH_BINDING, kind_groups, supports_batches
 from .context import bound_framebuffer
 from .programs import MAX_ROWS, ProgramKey, set_uniform
@@ -30,7 +31,8 @@ def sets_per_pass(warper, points_per_set):
 def map_points_batch(warper, blocks, points):
     """float64 (N, P, 2) point sets mapped by the maps whose parameter
     blocks are ``blocks`` (one for all, or one per set): float64 (N, P, 2)."""
-    blocks = [np.ascontiguousarray(b, dtype=np.float32) for b in blocks]
+    stack = BlockStack.from_blocks(blocks)
+    blocks = stack.blocks()
     n, p, _ = points.shape
     if n == 0 or p == 0:
         return np.empty(points.shape, np.float64)
@@ -45,7 +47,7 @@ def map_points_batch(warper, blocks, points):
     warper.targets.dummy.use()  # without a bound framebuffer (surfaceless EGL) nothing is captured
     try:
         per = sets_per_pass(warper, p)
-        for stages, _, idx, own in kind_groups(blocks, n, warper.specialize):
+        for stages, _, idx, own in kind_groups(stack, n, warper.specialize):
             prog = warper.program(ProgramKey("map_points.vert", stages=stages, varyings=("fpw_mapped",),
                                              flags=("FPW_BATCH",)))
             storage = prog.get("FpiwarpBatch", None)
@@ -55,7 +57,7 @@ def map_points_batch(warper, blocks, points):
             set_uniform(prog, "fpw_batch_step", 1 if own else 0)
             for a in range(0, len(idx), per):
                 part = idx[a:a + per]
-                _pass(warper, prog, [blocks[i] for i in part] if own else blocks[:1], flat[part], out, part)
+                _pass(warper, prog, stack.array[part] if own else stack.array[:1], flat[part], out, part)
     finally:
         caller.use()
     return out.astype(np.float64)
@@ -63,11 +65,10 @@ def map_points_batch(warper, blocks, points):
 
 def _pass(warper, prog, blocks, points, out, idx):
     """One transform-feedback pass: ``points`` (m, P, 2) float32 of sets
-    ``idx`` mapped into ``out[idx]``."""
+    ``idx`` mapped into ``out[idx]`` by ``blocks`` (m or 1, rows, 4)."""
     ctx = warper.ctx
     stacked = np.zeros((len(blocks), MAX_ROWS, 4), np.float32)
-    for j, b in enumerate(blocks):
-        stacked[j, :len(b)] = b
+    stacked[:, : blocks.shape[1]] = blocks
     ssbo = ctx.buffer(stacked.tobytes())
     vbo = ctx.buffer(points.tobytes())
     res = ctx.buffer(reserve=points.nbytes)

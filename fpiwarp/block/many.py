@@ -1,0 +1,132 @@
+"""The parameter blocks of many maps at once, for batches.
+
+A batch of N maps needs N blocks stacked into one (N, rows, 4) float32
+array and grouped by kind of map. :func:`pack_many` writes the stages of
+all maps in one pass (the eight fixed rows of every stage as one numpy
+assignment; only seed tables, regions and TPS centers stage by stage),
+and :meth:`BlockStack.groups` describes each distinct header once rather
+than each block. Block ``i`` of the stack equals ``pack(stage_lists[i])``
+bit for bit, followed by zero rows up to the longest block (rows past a
+block's stages are never read).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .describe import describe
+from .layout import LAYOUT_VERSION, MAX_STAGES, PAIRED_CORES, ROW_REGIONS, STAGE_ROWS
+from .pack import check_stage, rlinear_inverse, write_tables
+
+#: Rows 0 .. FIXED_ROWS - 1 of a stage: header, Möbius parts, R-linear
+#: part and its inverse (the Newton seed); every stage fills them.
+FIXED_ROWS = ROW_REGIONS
+
+
+def fixed_values(st):
+    """The FIXED_ROWS * 4 float64 values of a stage's fixed rows, as
+    :func:`fpiwarp.block.pack` writes them."""
+    pre, post, lin = st.pre, st.post, st.linear
+    center, pole, pre_scale = complex(pre.center), complex(pre.inverse_pole), complex(pre.scale)
+    post_scale, post_pole, offset = complex(post.scale), complex(post.inverse_pole), complex(post.offset)
+    l1, l2, l3 = complex(lin.l1), complex(lin.l2), complex(lin.l3)
+    mu = rlinear_inverse(lin)  # the Newton seed
+    m1, m2, m3 = complex(mu.l1), complex(mu.l2), complex(mu.l3)
+    n = len(st.centers) * (2 if st.core in PAIRED_CORES else 1)
+    return (st.core, n, len(st.regions), st.newton_iters,
+            center.real, center.imag, pole.real, pole.imag,
+            pre_scale.real, pre_scale.imag, post_scale.real, post_scale.imag,
+            post_pole.real, post_pole.imag, offset.real, offset.imag,
+            l1.real, l1.imag, l2.real, l2.imag,
+            l3.real, l3.imag, st.newton_tol, 0.0,
+            m1.real, m1.imag, m2.real, m2.imag,
+            m3.real, m3.imag, 0.0, 0.0)
+
+
+def _has_tables(st):
+    return st.seed is not None or len(st.regions) > 0 or len(st.centers) > 0
+
+
+def pack_many(stage_lists):
+    """The blocks of many maps' stages: (N, rows, 4) float32, block ``i``
+    equal to ``pack(stage_lists[i])`` bit for bit, then zero rows up to the
+    longest block. Raises ValueError as :func:`fpiwarp.block.pack` does."""
+    stage_lists = [list(stages) for stages in stage_lists]
+    counts = np.array([len(stages) for stages in stage_lists], dtype=np.int64)
+    for count in counts:
+        if not 1 <= count <= MAX_STAGES:
+            raise ValueError(f"a map packs into 1 to {MAX_STAGES} stages, this one needs {count}")
+    flat = [st for stages in stage_lists for st in stages]
+    for st in flat:
+        check_stage(st)
+    out = np.zeros((len(stage_lists), 1 + int(counts.max()) * STAGE_ROWS, 4), dtype=np.float64)
+    out[:, 0, 0], out[:, 0, 1] = counts, LAYOUT_VERSION
+    values = np.array([fixed_values(st) for st in flat], dtype=np.float64).reshape(-1, FIXED_ROWS, 4)
+    owner = np.repeat(np.arange(len(stage_lists)), counts)
+    first = 1 + STAGE_ROWS * np.concatenate([np.arange(c) for c in counts])
+    out[owner[:, None], first[:, None] + np.arange(FIXED_ROWS)] = values
+    for j, st in enumerate(flat):
+        if _has_tables(st):
+            write_tables(out[owner[j], first[j] : first[j] + STAGE_ROWS], st)
+    return out.astype(np.float32)
+
+
+@dataclass(frozen=True)
+class BlockStack:
+    """Stacked float32 blocks of N maps: ``array`` (N, rows, 4), block
+    ``i`` in its first ``rows[i]`` rows (zero rows after)."""
+
+    array: np.ndarray
+    rows: np.ndarray
+
+    @classmethod
+    def of(cls, transforms):
+        """The blocks of ``transforms`` (anything with ``stages()``: maps,
+        or the inverse blocks the batch paths compute once)."""
+        array = pack_many([t.stages() for t in transforms])
+        return cls(array, 1 + STAGE_ROWS * array[:, 0, 0].astype(np.int64))
+
+    @classmethod
+    def from_blocks(cls, blocks):
+        """A stack of given blocks ((rows, 4) arrays, e.g. ``params()``), or
+        ``blocks`` itself when it is a BlockStack already."""
+        if isinstance(blocks, cls):
+            return blocks
+        blocks = [np.asarray(b, dtype=np.float32) for b in blocks]
+        rows = np.array([b.shape[0] for b in blocks], dtype=np.int64)
+        array = np.zeros((len(blocks), int(rows.max()), 4), dtype=np.float32)
+        for i, b in enumerate(blocks):
+            array[i, : rows[i]] = b
+        return cls(array, rows)
+
+    def __len__(self):
+        return len(self.array)
+
+    def blocks(self):
+        """Each block alone, as ``Transform.params()`` gives it (views)."""
+        return [self.array[i, :r] for i, r in enumerate(self.rows)]
+
+    def take(self, idx):
+        """(rows, (len(idx), rows, 4) float32): blocks ``idx`` padded to the
+        longest of them."""
+        rows = int(self.rows[idx].max())
+        return rows, np.ascontiguousarray(self.array[idx, :rows])
+
+    def groups(self, key):
+        """[(key, indices (k,) int32)]: the blocks grouped by ``key(kind)``
+        of their :class:`~fpiwarp.block.BlockKind`, in order of first
+        appearance, indices increasing. Each distinct header (the stage
+        count and every stage's header row) is described once, so ``key``
+        must read only what the header decides (``stages``, ``is_short``),
+        never ``constant_dilation``. A block no kernel knows raises
+        ValueError (:func:`fpiwarp.block.describe`)."""
+        heads = self.array[:, 1::STAGE_ROWS][:, : (self.array.shape[1] - 1) // STAGE_ROWS]
+        sig = np.concatenate([self.array[:, 0], heads.reshape(len(self), -1)], axis=1)
+        _, first, inverse = np.unique(sig, axis=0, return_index=True, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        found = {}
+        for u in np.argsort(first, kind="stable"):
+            i = int(first[u])
+            k = key(describe(self.array[i, : self.rows[i]]))
+            found.setdefault(k, []).append(u)
+        return [(k, np.flatnonzero(np.isin(inverse, us)).astype(np.int32)) for k, us in found.items()]
