@@ -8,6 +8,7 @@ from numpy.typing import ArrayLike
 from ._errors import ArgumentError
 from ._transform import Transform
 from .backends import backend_capabilities, get_backend
+from .batch import KERNEL_BACKENDS
 from .validation import check_map_size, check_point_count, check_points, check_transform
 
 __all__ = ["map_points_batch"]
@@ -80,6 +81,11 @@ def map_points_batch(
         raise ArgumentError(f"got {len(maps)} maps for {n} point sets; give one map or one per set")
     caps = backend_capabilities(backend)
     check_point_count(pts[0] if n else pts, caps, backend)
+    if backend in KERNEL_BACKENDS and n:
+        # Each map's stages computed once, for the check and the block alike.
+        from .arrays.dispatch import InverseBlock  # noqa: PLC0415 - loaded with the first batch
+
+        maps = [InverseBlock(t.stages()) for t in maps]
     for t in maps:
         check_map_size(t, caps, backend)
     impl = get_backend(backend)
