@@ -5,6 +5,8 @@ derivatives are the constants f_z = l1 and f_zbar = l2, so its conformal
 distortion is the constant K = (|l1| + |l2|) / (|l1| - |l2|).
 """
 
+import math
+
 import numpy as np
 
 from ._errors import ArgumentError
@@ -40,7 +42,7 @@ class RLinear(Transform):
 
     def __init__(self, l1: complex, l2: complex = 0, l3: complex = 0):
         l1, l2, l3 = complex(l1), complex(l2), complex(l3)
-        if not all(np.isfinite([l1.real, l1.imag, l2.real, l2.imag, l3.real, l3.imag])):
+        if not all(math.isfinite(v) for v in (l1.real, l1.imag, l2.real, l2.imag, l3.real, l3.imag)):
             raise ArgumentError("R-linear coefficients must be finite")
         if abs(abs(l1) - abs(l2)) <= 1e-14 * (abs(l1) + abs(l2)):
             raise ArgumentError("singular R-linear map: |l1| == |l2|")

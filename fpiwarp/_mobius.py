@@ -7,6 +7,8 @@ similarity), and the inverse has the same form with
 (q, s, alpha, beta) -> (beta, -s / alpha, 1 / alpha, q).
 """
 
+import math
+
 import numpy as np
 
 from ._errors import ArgumentError
@@ -16,7 +18,7 @@ from .block import LinearPart, MobiusPart, Stage
 
 def _complex(value, name):
     value = complex(value)
-    if not np.isfinite(value.real) or not np.isfinite(value.imag):
+    if not math.isfinite(value.real) or not math.isfinite(value.imag):  # math: ~10x cheaper on scalars
         raise ArgumentError(f"{name} must be finite, got {value}")
     return value
 
