@@ -10,6 +10,8 @@ level. One module per job:
 * :mod:`~fpiwarp.block.stage`: :class:`Stage` and its named parts
   (:class:`MobiusPart`, :class:`LinearPart`, :class:`Region`);
 * :mod:`~fpiwarp.block.pack`: :func:`pack`, stages to the float32 block;
+* :mod:`~fpiwarp.block.many`: the blocks of a batch's maps packed in one
+  pass and grouped by kind (each distinct kind described once);
 * :mod:`~fpiwarp.block.describe`: :func:`describe`, the kind of map a
   block holds, which every backend and the renderer choose programs by;
 * :mod:`~fpiwarp.block.reference`: :func:`evaluate`, the numpy reference
