@@ -6,6 +6,7 @@ distortion is the constant K = (|l1| + |l2|) / (|l1| - |l2|).
 """
 
 import math
+import sys
 
 import numpy as np
 
@@ -75,7 +76,13 @@ class RLinear(Transform):
 
     @property
     def inverse(self):
-        det = abs(self.l1) ** 2 - abs(self.l2) ** 2
+        try:
+            det = abs(self.l1) ** 2 - abs(self.l2) ** 2
+        except OverflowError:
+            det = math.inf
+        if not abs(det) >= sys.float_info.min or not math.isfinite(det):  # |l|² under- or overflows float64
+            raise ArgumentError(f"cannot invert {self!r}: |l1|² - |l2|² = {det:g} is outside float64's normal "
+                                "range; rescale the map's coefficients")
         m1 = np.conj(self.l1) / det
         m2 = -self.l2 / det
         return RLinear(m1, m2, -(m1 * self.l3 + m2 * np.conj(self.l3)))

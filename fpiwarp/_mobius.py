@@ -66,7 +66,14 @@ class Mobius(Transform):
             # center the form one pole-distance-from-origin (at least 1) away
             q = -d / c + max(1.0, abs(d / c))
         den = c * q + d
-        self._set(q, -c / den, det / den**2, (a * q + b) / den)
+        try:
+            den2 = den**2
+        except OverflowError:
+            den2 = complex(math.inf)
+        if den2 == 0 or not math.isfinite(abs(den2)):  # cz + d at the center under- or overflows when squared
+            raise ArgumentError(f"Möbius coefficients (c z + d = {den:g} at the center {q:g}) are outside "
+                                "float64's range there; rescale them or pick another center")
+        self._set(q, -c / den, det / den2, (a * q + b) / den)
 
     @classmethod
     def centered(cls, q, s, alpha, beta):

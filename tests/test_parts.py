@@ -5,6 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import fpiwarp
 from fpiwarp import Compound, Mobius, RLinear
 from fpiwarp.params import LAYOUT_VERSION, MAX_STAGES, STAGE_ROWS, Stage, evaluate, pack
 
@@ -50,6 +51,12 @@ def test_mobius_pole_and_singular_coefficients():
         Mobius(1, 2, 2, 4)
     with pytest.raises(ValueError, match="finite"):
         Mobius(np.nan, 0, 0, 1)
+    with pytest.raises(fpiwarp.ArgumentError, match="outside float64's range"):  # (c q + d)² underflows
+        Mobius(1, 0, 0, 1e-170)  # z * 1e170: valid, but its centered form squares c q + d = 1e-170
+    with pytest.raises(fpiwarp.ArgumentError, match="outside float64's range"):
+        Mobius(1, 0, 0, 1e-170, center=5)
+    with pytest.raises(fpiwarp.ArgumentError, match="outside float64's range"):  # ... or overflows
+        Mobius(1, 0, 0, 1e170)
 
 
 def test_rlinear_from_matrix_and_inverse():
@@ -64,6 +71,11 @@ def test_rlinear_from_matrix_and_inverse():
     assert A.K == pytest.approx(sv[0] / sv[1])
     with pytest.raises(ValueError, match="singular"):
         RLinear(1, 1)
+    tiny = RLinear(1e-166)  # a valid map whose |l1|² underflows: its inverse is refused in one line
+    with pytest.raises(fpiwarp.ArgumentError, match="cannot invert RLinear.*outside float64's normal range"):
+        tiny.inverse.stages()
+    with pytest.raises(fpiwarp.ArgumentError, match="outside float64's normal range"):
+        RLinear(1e160).inverse.stages()
 
 
 def test_composition_is_in_mathematical_order_and_fuses():
