@@ -197,16 +197,15 @@ def warp_batch(
         # stage count per map (a Warper per map cost ~40 % of a batch of small images).
         checked = check_warp_arguments(first, maps[0], output_shape, order, mode, cval, lead.capabilities, backend,
                                        antialias=antialias)
+        for t in maps[1:]:
+            check_transform(t, "transforms")
         if backend in KERNEL_BACKENDS:
             # Each further map's inverse and its stages computed once, for the check and the block alike.
             from .arrays.dispatch import Inverted  # noqa: PLC0415 - loaded with the first batch
 
-            maps = [maps[0], *(Inverted(check_transform(t, "transforms")) for t in maps[1:])]
-            for t in maps[1:]:
-                check_map_size(t.inverse, lead.capabilities, backend)
-        else:
-            for t in maps[1:]:
-                check_map_size(check_transform(t, "transforms").inverse, lead.capabilities, backend)
+            maps = [maps[0], *(Inverted(t) for t in maps[1:])]
+        for t in maps[1:]:
+            check_map_size(t.inverse, lead.capabilities, backend)
         out = get_backend(backend).warp_batch(
             np.ascontiguousarray(stack.reshape(n, h, w, c)),
             maps,

@@ -65,10 +65,13 @@ def kind_groups(transforms, n):
     each distinct kind described once (:class:`fpiwarp.block.many.BlockStack`)."""
     stack = BlockStack.of(transforms)
     if len(stack) == 1:
-        key = tuple((s.core, s.n_regions) for s in describe(stack.array[0]).stages)
-        return [(key, stack.array, np.arange(n, dtype=np.int32))]
-    groups = stack.groups(lambda kind: tuple((s.core, s.n_regions) for s in kind.stages))
-    return [(key, stack.take(idx)[1], idx) for key, idx in groups]
+        return [(_kind_key(describe(stack.array[0])), stack.array, np.arange(n, dtype=np.int32))]
+    return [(key, stack.take(idx)[1], idx) for key, idx in stack.groups(_kind_key)]
+
+
+def _kind_key(kind):
+    """What a per-kind kernel is specialized on: each stage's core and region count."""
+    return tuple((s.core, s.n_regions) for s in kind.stages)
 
 
 def _ranges(n, item_bytes):

@@ -15,32 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .describe import describe
-from .layout import LAYOUT_VERSION, MAX_STAGES, PAIRED_CORES, ROW_REGIONS, STAGE_ROWS
-from .pack import check_stage, rlinear_inverse, write_tables
+from .layout import LAYOUT_VERSION, MAX_STAGES, ROW_REGIONS, STAGE_ROWS
+from .pack import check_stage, fixed_values, write_tables
 
-#: Rows 0 .. FIXED_ROWS - 1 of a stage: header, Möbius parts, R-linear
-#: part and its inverse (the Newton seed); every stage fills them.
+#: Rows 0 .. FIXED_ROWS - 1 of a stage, which every stage fills (:func:`fixed_values`).
 FIXED_ROWS = ROW_REGIONS
-
-
-def fixed_values(st):
-    """The FIXED_ROWS * 4 float64 values of a stage's fixed rows, as
-    :func:`fpiwarp.block.pack` writes them."""
-    pre, post, lin = st.pre, st.post, st.linear
-    center, pole, pre_scale = complex(pre.center), complex(pre.inverse_pole), complex(pre.scale)
-    post_scale, post_pole, offset = complex(post.scale), complex(post.inverse_pole), complex(post.offset)
-    l1, l2, l3 = complex(lin.l1), complex(lin.l2), complex(lin.l3)
-    mu = rlinear_inverse(lin)  # the Newton seed
-    m1, m2, m3 = complex(mu.l1), complex(mu.l2), complex(mu.l3)
-    n = len(st.centers) * (2 if st.core in PAIRED_CORES else 1)
-    return (st.core, n, len(st.regions), st.newton_iters,
-            center.real, center.imag, pole.real, pole.imag,
-            pre_scale.real, pre_scale.imag, post_scale.real, post_scale.imag,
-            post_pole.real, post_pole.imag, offset.real, offset.imag,
-            l1.real, l1.imag, l2.real, l2.imag,
-            l3.real, l3.imag, st.newton_tol, 0.0,
-            m1.real, m1.imag, m2.real, m2.imag,
-            m3.real, m3.imag, 0.0, 0.0)
 
 
 def _has_tables(st):

@@ -11,15 +11,7 @@ from .layout import (
     MAX_STAGES,
     PAIRED_CORES,
     ROW_CENTERS,
-    ROW_HEADER,
-    ROW_L3,
-    ROW_L12,
-    ROW_MU3,
-    ROW_MU12,
-    ROW_POST,
-    ROW_PRE,
     ROW_REGIONS,
-    ROW_SCALE,
     ROW_SEED,
     ROW_SEED_GRID,
     SEED_N,
@@ -92,6 +84,29 @@ def check_stage(stage):
         raise ValueError(f"a stage's post-Möbius is centered at 0, got {stage.post}")
 
 
+def fixed_values(st):
+    """The ROW_REGIONS * 4 float64 values of a stage's fixed rows (header,
+    Möbius parts, R-linear part and its inverse, the Newton seed), in row
+    order: the one definition of those rows, for :func:`pack` and for
+    :func:`fpiwarp.block.many.pack_many` (a flat tuple: cheaper than
+    writing row by row when many maps are packed)."""
+    pre, post, lin = st.pre, st.post, st.linear
+    center, pole, pre_scale = complex(pre.center), complex(pre.inverse_pole), complex(pre.scale)
+    post_scale, post_pole, offset = complex(post.scale), complex(post.inverse_pole), complex(post.offset)
+    l1, l2, l3 = complex(lin.l1), complex(lin.l2), complex(lin.l3)
+    mu = rlinear_inverse(lin)  # the Newton seed
+    m1, m2, m3 = complex(mu.l1), complex(mu.l2), complex(mu.l3)
+    values = (st.core, _center_rows(st), len(st.regions), st.newton_iters,  # ROW_HEADER
+              center.real, center.imag, pole.real, pole.imag,  # ROW_PRE
+              pre_scale.real, pre_scale.imag, post_scale.real, post_scale.imag,  # ROW_SCALE
+              post_pole.real, post_pole.imag, offset.real, offset.imag,  # ROW_POST
+              l1.real, l1.imag, l2.real, l2.imag,  # ROW_L12
+              l3.real, l3.imag, st.newton_tol, 0.0,  # ROW_L3
+              m1.real, m1.imag, m2.real, m2.imag,  # ROW_MU12
+              m3.real, m3.imag, 0.0, 0.0)  # ROW_MU3
+    return values
+
+
 def write_tables(rows, st):
     """Write stage ``st``'s seed table, regions and TPS centers into its
     rows (float64, zero where the stage has none); the rows before
@@ -126,16 +141,6 @@ def pack(stages, dtype=np.float32):
     for k, st in enumerate(stages):
         check_stage(st)
         rows = block[1 + k * STAGE_ROWS : 1 + (k + 1) * STAGE_ROWS]
-        n = _center_rows(st)
-        rows[ROW_HEADER] = (st.core, n, len(st.regions), st.newton_iters)
-        _put(rows[ROW_PRE], st.pre.center, st.pre.inverse_pole)
-        _put(rows[ROW_SCALE], st.pre.scale, st.post.scale)
-        _put(rows[ROW_POST], st.post.inverse_pole, st.post.offset)
-        _put(rows[ROW_L12], st.linear.l1, st.linear.l2)
-        _put(rows[ROW_L3], st.linear.l3)
-        rows[ROW_L3, 2] = st.newton_tol
-        mu = rlinear_inverse(st.linear)  # the Newton seed
-        _put(rows[ROW_MU12], mu.l1, mu.l2)
-        _put(rows[ROW_MU3], mu.l3)
+        rows[:ROW_REGIONS] = np.reshape(fixed_values(st), (ROW_REGIONS, 4))
         write_tables(rows, st)
     return block.astype(dtype)

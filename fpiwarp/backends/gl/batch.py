@@ -52,13 +52,13 @@ def kind_groups(stack, n, specialize):
     not specializing, or for one map shared by all ``n`` images).
     ``stack``: a :class:`~fpiwarp.block.many.BlockStack`, each distinct kind
     described once."""
+    def key(kind):  # (each stage's core and region count, short map) when specializing
+        return (tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None,
+                specialize and kind.is_short)
+
     if len(stack) == 1:
-        kind = describe(stack.array[0, : stack.rows[0]])
-        stages = tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None
-        return [(stages, specialize and kind.is_short, np.arange(n), False)]
-    groups = stack.groups(lambda kind: (tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None,
-                                        specialize and kind.is_short))
-    return [(stages, short, idx.astype(np.intp), True) for (stages, short), idx in groups]
+        return [(*key(describe(stack.array[0, : stack.rows[0]])), np.arange(n), False)]
+    return [(stages, short, idx.astype(np.intp), True) for (stages, short), idx in stack.groups(key)]
 
 
 def images_per_draw(warper, image_shape, output_shape, itemsize):
@@ -80,9 +80,9 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
     n, h, w, c = stack.shape
     oh, ow = (int(v) for v in output_shape)
     stack_of_blocks = BlockStack.from_blocks(blocks)
-    blocks = stack_of_blocks.blocks()
     cval = np.zeros(c) if cval is None else np.broadcast_to(np.asarray(cval, np.float64), (c,))
     if h > warper.max_size or w > warper.max_size or oh > warper.max_size or not supports_batches(warper.ctx):
+        blocks = stack_of_blocks.blocks()  # image by image
         maps = blocks * n if len(blocks) == 1 else blocks
         return np.stack([warper.warp_block(stack[i], maps[i], (oh, ow), order=order, mode=mode, cval=cval,
                                            antialias=antialias) for i in range(n)])

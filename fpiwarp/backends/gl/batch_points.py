@@ -32,11 +32,11 @@ def map_points_batch(warper, blocks, points):
     """float64 (N, P, 2) point sets mapped by the maps whose parameter
     blocks are ``blocks`` (one for all, or one per set): float64 (N, P, 2)."""
     stack = BlockStack.from_blocks(blocks)
-    blocks = stack.blocks()
     n, p, _ = points.shape
     if n == 0 or p == 0:
         return np.empty(points.shape, np.float64)
     if not supports_batches(warper.ctx):
+        blocks = stack.blocks()  # set by set
         maps = blocks * n if len(blocks) == 1 else blocks
         return np.stack([warper.map_points(_Block(b), s) for b, s in zip(maps, points, strict=True)])
     out = np.empty((n, p, 2), np.float32)
