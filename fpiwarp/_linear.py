@@ -6,13 +6,13 @@ distortion is the constant K = (|l1| + |l2|) / (|l1| - |l2|).
 """
 
 import math
-import sys
 
 import numpy as np
 
 from ._errors import ArgumentError
 from ._transform import Transform
 from .block import LinearPart, Stage
+from .block.pack import rlinear_inverse
 
 
 class RLinear(Transform):
@@ -77,15 +77,10 @@ class RLinear(Transform):
     @property
     def inverse(self):
         try:
-            det = abs(self.l1) ** 2 - abs(self.l2) ** 2
-        except OverflowError:
-            det = math.inf
-        if not abs(det) >= sys.float_info.min or not math.isfinite(det):  # |l|² under- or overflows float64
-            raise ArgumentError(f"cannot invert {self!r}: |l1|² - |l2|² = {det:g} is outside float64's normal "
-                                "range; rescale the map's coefficients")
-        m1 = np.conj(self.l1) / det
-        m2 = -self.l2 / det
-        return RLinear(m1, m2, -(m1 * self.l3 + m2 * np.conj(self.l3)))
+            mu = rlinear_inverse(LinearPart(self.l1, self.l2, self.l3))  # the block's Newton seed: one formula
+        except ValueError as err:
+            raise ArgumentError(str(err)) from None
+        return RLinear(mu.l1, mu.l2, mu.l3)
 
     def _fuse_with(self, nxt):
         if isinstance(nxt, RLinear):

@@ -150,8 +150,13 @@ class Transform(abc.ABC):
         """Parameter-block stages, applied in order, that evaluate this map."""
 
     def params(self) -> np.ndarray:
-        """The flat float32 parameter block every backend reads."""
-        return pack(self.stages())
+        """The flat float32 parameter block every backend reads (ArgumentError
+        for a map the block cannot hold, e.g. one whose R-linear part has no
+        float64 inverse for the device Newton's seed)."""
+        try:
+            return pack(self.stages())
+        except ValueError as err:
+            raise ArgumentError(f"{type(self).__name__} cannot be packed into the parameter block: {err}") from None
 
     def jacobian(self, points: ArrayLike) -> np.ndarray:
         """Analytic Jacobian, shape (..., 2, 2), J[..., i, j] = d f_i / d x_j."""

@@ -72,10 +72,12 @@ def test_rlinear_from_matrix_and_inverse():
     with pytest.raises(ValueError, match="singular"):
         RLinear(1, 1)
     tiny = RLinear(1e-166)  # a valid map whose |l1|² underflows: its inverse is refused in one line
-    with pytest.raises(fpiwarp.ArgumentError, match="cannot invert RLinear.*outside float64's normal range"):
+    with pytest.raises(fpiwarp.ArgumentError, match="cannot invert the R-linear map.*outside float64's normal range"):
         tiny.inverse.stages()
     with pytest.raises(fpiwarp.ArgumentError, match="outside float64's normal range"):
         RLinear(1e160).inverse.stages()
+    with pytest.raises(fpiwarp.ArgumentError, match="RLinear cannot be packed.*outside float64's normal range"):
+        tiny.params()  # the block carries the inverse too (the device Newton's seed)
 
 
 def test_composition_is_in_mathematical_order_and_fuses():

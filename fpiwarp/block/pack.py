@@ -24,8 +24,9 @@ def rlinear_inverse(linear):
     """The inverse of an R-linear part, the seed of the device Newton.
 
     The same formula as :attr:`fpiwarp.RLinear.inverse`, in plain complex
-    arithmetic (the block layer imports no map class). Raises ValueError
-    for a singular or non-finite part, as RLinear does.
+    arithmetic (the block layer imports no map class); RLinear.inverse
+    calls it. Raises ValueError for a singular or non-finite part, or one
+    whose |l1|² - |l2|² under- or overflows float64.
     """
     l1, l2, l3 = complex(linear.l1), complex(linear.l2), complex(linear.l3)
     # abs(v) < inf: finite (False for inf and nan), cheaper than np.isfinite on six scalars
@@ -33,7 +34,13 @@ def rlinear_inverse(linear):
         raise ValueError("R-linear coefficients must be finite")
     if abs(abs(l1) - abs(l2)) <= 1e-14 * (abs(l1) + abs(l2)):
         raise ValueError("singular R-linear map: |l1| == |l2|")
-    det = abs(l1) ** 2 - abs(l2) ** 2
+    try:
+        det = abs(l1) ** 2 - abs(l2) ** 2
+    except OverflowError:
+        det = np.inf
+    if not np.inf > abs(det) >= np.finfo(np.float64).tiny:  # |l|² under- or overflows float64
+        raise ValueError(f"cannot invert the R-linear map ({l1}, {l2}, {l3}): |l1|² - |l2|² = {det:g} is outside "
+                         "float64's normal range; rescale the map's coefficients")
     m1 = np.conj(l1) / det
     m2 = -l2 / det
     return LinearPart(complex(m1), complex(m2), complex(-(m1 * l3 + m2 * np.conj(l3))))
