@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import fpiwarp
-from fpiwarp._sampling import sample
+from fpiwarp.sampling.sampler import sample
 
 REF_SUB = 8
 SHRINKS = (1.5, 2, 3, 4, 8)

@@ -42,7 +42,7 @@ def _device(backend, stack):
 
         singles = [(to_opencl(im), cla.empty(opencl_queue(), im.shape, im.dtype)) for im in stack]
         return to_opencl(stack), cla.empty(opencl_queue(), stack.shape, stack.dtype), singles, opencl_queue().finish
-    from fpiwarp.backends import warp_backend
+    from fpiwarp.backends.nvwarp import backend as warp_backend
 
     wp = warp_backend.warp_module()
     device = get_backend("warp").device

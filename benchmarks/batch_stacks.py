@@ -8,7 +8,7 @@
   in frames per second (batch and loop) on the device backends.
 - ``opencl transfers``: the 64-map batch on the opencl backend through
   each way of reaching the device (``zero_copy``, ``serial`` and
-  ``pipelined``, see :mod:`fpiwarp.backends.opencl_batch`).
+  ``pipelined``, see :mod:`fpiwarp.backends.opencl.batch`).
 
 Run alone with ``python -m benchmarks --only batch`` (writes batch.md and
 batch.json). On a machine with CUDA or an OpenCL GPU the backends pick the

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import fpiwarp
-from fpiwarp.batch import run_batch
+from fpiwarp.batch.images import run_batch
 
 WIDTH, HEIGHT = 1920, 1080
 

@@ -69,7 +69,7 @@ def _methods(w, h, img):
 
 def run(sizes, repeat):
     from fpiwarp.backends import backend_status
-    from fpiwarp.backends.gl_backend import shared_context
+    from fpiwarp.backends.gl import shared_context
 
     reason = backend_status()["gl"]
     if reason is not None:

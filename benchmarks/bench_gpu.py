@@ -10,7 +10,7 @@ For each backend, RGB and RGBA uint8 images warped by a generic FPI
   its parameters uploaded every frame, each frame waited for (the preview's
   frame while a corner is dragged): Warp and OpenCL relaunch the backend's
   own kernel through its public ``prepare_warp`` job; GL draws with
-  :class:`fpiwarp.gl.Renderer` into an offscreen framebuffer;
+  :class:`fpiwarp.viewer.Renderer` into an offscreen framebuffer;
 - "on device, kernel only": one map, launches back to back (GL: each draw
   waited for), i.e. the kernel's own throughput;
 
@@ -82,7 +82,7 @@ def kernel_on_device(be, img, w, h, n, new_map):
 
 def gl_on_device(be, img, w, h, n, new_map):
     """Per-frame time of the preview Renderer drawing into an offscreen target."""
-    from fpiwarp.gl import Renderer
+    from fpiwarp.viewer import Renderer
 
     warper = be.warper
     ctx = warper.ctx

@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 import fpiwarp
-from fpiwarp.backends import warp_backend
+from fpiwarp.backends.nvwarp import backend as warp_backend
 
 WIDTH, HEIGHT = 3840, 2160
 N_POINTS = 10_000_000

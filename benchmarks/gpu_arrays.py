@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 
 import fpiwarp
-from fpiwarp.backends import get_backend, warp_backend
+from fpiwarp.backends import get_backend
+from fpiwarp.backends.nvwarp import backend as warp_backend
 
 try:  # python3 -m benchmarks.gpu_arrays
     from . import gpu_batches

@@ -1,7 +1,7 @@
 """Batches of device arrays on a CUDA GPU: checks and timings that need one (issue 15).
 
 Run by ``python3 -m benchmarks.gpu_arrays`` (with its single-image checks,
-into the same arrays_gpu.md); tests/test_arrays_cuda.py runs the checks
+into the same arrays_gpu.md); tests/backends/nvwarp/test_nvwarp_cuda.py runs the checks
 under pytest (skipped without CUDA). Checks, each raising on failure or
 :class:`Skip` without the hardware or library:
 
@@ -30,7 +30,8 @@ import time
 import numpy as np
 
 import fpiwarp
-from fpiwarp.backends import get_backend, warp_backend
+from fpiwarp.backends import get_backend
+from fpiwarp.backends.nvwarp import backend as warp_backend
 
 KINDS = ("fpi", "tps_inverse", "compound", "fpi")
 
@@ -40,7 +41,7 @@ class Skip(Exception):
 
 
 #: Set (to anything) to run the checks on Warp's CPU device: the checks'
-#: own logic is tested that way where there is no GPU (tests/test_arrays_cuda.py).
+#: own logic is tested that way where there is no GPU (tests/backends/nvwarp/test_nvwarp_cuda.py).
 ON_CPU_ENV = "FPIWARP_GPU_CHECKS_ON_CPU"
 
 
@@ -95,7 +96,7 @@ class NoReadback:
     """While active, Warp readbacks and the batch runner's host paths raise."""
 
     def __init__(self, wp):
-        from fpiwarp.backends import warp_batches
+        from fpiwarp.backends.nvwarp import batch as warp_batches
 
         self.patches = [(type(wp.empty(1, device="cpu")), "numpy"), (warp_backend.Backend, "_to_device"),
                         (warp_backend.DeviceWarp, "read"), (warp_batches.BatchRunner, "warp_batch"),
@@ -142,7 +143,7 @@ def check_warp_stacks():
 
 
 def check_numpy_stack_on_cuda():
-    from fpiwarp.backends import warp_batches
+    from fpiwarp.backends.nvwarp import batch as warp_batches
 
     cuda_backend()
     stack = stack_of(5, 70, 90, 4)

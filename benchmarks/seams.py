@@ -42,9 +42,9 @@ from pathlib import Path
 import numpy as np
 
 from fpiwarp import ConstrainedFPI, LocalDeformation
-from fpiwarp._constrained import edge_similarity
+from fpiwarp.block import evaluate
+from fpiwarp.maps.constrained import edge_similarity
 from fpiwarp.metrics import grid, jacobian_determinant
-from fpiwarp.params import evaluate
 
 from .seams_speed import backend_speed
 from .seams_speed import markdown as speed_markdown

@@ -24,7 +24,7 @@ import dataclasses
 import numpy as np
 
 import fpiwarp
-from fpiwarp.warper import Warper
+from fpiwarp.warping import Warper
 
 from .speed import IMAGE_BASELINE, _add_ratios, _brief, _measure, corner_quads, table, test_image
 
@@ -165,7 +165,7 @@ def markdown_parts(results):
             "",
             "## warp_image, per-call overhead (small FPI warps, uint8 RGB)",
             "",
-            f"Plain `warp_image` and the prepared `fpiwarp.warper.Warper`; ratios to `{IMAGE_BASELINE}`.",
+            f"Plain `warp_image` and the prepared `fpiwarp.warping.Warper`; ratios to `{IMAGE_BASELINE}`.",
             "",
             table(results, "warp_image overhead", "uint8"),
         ]

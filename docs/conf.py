@@ -49,7 +49,7 @@ autodoc_member_order = "bysource"
 # of the source, which the site does not document.
 nitpicky = True
 nitpick_ignore = [
-    ("py:mod", "fpiwarp._exactness"),
+    ("py:mod", "fpiwarp.maps.quad"),
     ("py:mod", "fpiwarp.block"),
     ("py:mod", "fpiwarp.block.codegen"),
     ("py:func", "read_image"),  # ImageInfo's docstring, in its private module
@@ -135,7 +135,7 @@ def _cli_help():
     from the parser itself (fpiwarp.cli.build_parser)."""
     import argparse
 
-    from fpiwarp.cli import build_parser
+    from fpiwarp.cli.commands import build_parser
 
     parser = build_parser()
     parser.prog = "fpiwarp"

@@ -4,8 +4,10 @@ from .resources import bind_source_packages
 
 bind_source_packages()  # kernels/ and glsl/ from this tree, never another checkout's
 
-from ._constrained import ConstrainedFPI
-from ._errors import (
+from .backends import available_backends, backend_capabilities, backend_status
+from .batch.images import warp_batch, warp_images
+from .batch.points import map_points_batch
+from .errors import (
     ArgumentError,
     ArgumentTypeError,
     BackendUnavailableError,
@@ -23,19 +25,17 @@ from ._errors import (
     SizeLimitError,
     SpecError,
 )
-from ._fpi import FPI
-from ._linear import RLinear
-from ._local import LocalDeformation
-from ._mobius import Mobius
-from ._tps import ThinPlateSpline
-from ._transform import Compound, Transform
-from ._warp import map_points, warp_image
-from .backends import available_backends, backend_capabilities, backend_status
-from .batch import warp_batch, warp_images
-from .batch_points import map_points_batch
-from .io import read_image, write_image
-from .positions import source_positions
+from .io.images import read_image, write_image
+from .maps.constrained import ConstrainedFPI
+from .maps.fpi import FPI
+from .maps.local import LocalDeformation
+from .maps.mobius import Mobius
+from .maps.rlinear import RLinear
+from .maps.thin_plate_spline import ThinPlateSpline
+from .maps.transform import Compound, Transform
+from .sampling.positions import source_positions
 from .spec import load_spec
+from .warping import map_points, warp_image
 
 __version__ = "0.1.0"
 

@@ -9,9 +9,9 @@ it is bounded unless the circle passes through the pole, which is refused.
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._fpi import FPI
-from ._points import as_xy
-from ._quad import check_quad, signed_area
+from .maps.fpi import FPI
+from .maps.points import as_xy
+from .maps.quad import check_quad, signed_area
 
 
 def curve_map(anchors: ArrayLike) -> FPI:

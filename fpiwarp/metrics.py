@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._errors import ArgumentError, ArgumentTypeError
-from ._points import as_complex, as_xy
-from ._transform import Transform, distortion_from_wirtinger
+from .errors import ArgumentError, ArgumentTypeError
+from .maps.points import as_complex, as_xy
+from .maps.transform import Transform, distortion_from_wirtinger
 
 #: What the metrics measure: an fpiwarp map (analytic derivatives) or any
 #: callable taking (N, 2) points to (N, 2) points (central differences).

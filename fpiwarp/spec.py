@@ -40,10 +40,10 @@ import os
 import re
 from importlib import resources
 
-from ._errors import DegenerateQuadError, SpecError
-from ._fpi import FPI
-from ._quad import MAX_COORDINATE, check_quad
-from ._transform import Compound, Transform
+from .errors import DegenerateQuadError, SpecError
+from .maps.fpi import FPI
+from .maps.quad import MAX_COORDINATE, check_quad
+from .maps.transform import Compound, Transform
 
 __all__ = ["SpecError", "build_transform", "load_spec", "parse_spec", "save_spec", "schema", "to_spec", "validate_spec"]
 
@@ -212,7 +212,7 @@ def _build(spec, path):
 
 def _local_deformation():
     try:
-        from ._local import LocalDeformation
+        from .maps.local import LocalDeformation
     except ImportError as exc:
         raise SpecError(f"local deformations (specs with 'edges') are not available in this fpiwarp: {exc}") from None
     return LocalDeformation
@@ -354,7 +354,7 @@ def save_spec(transform: Transform, path: str | os.PathLike, *, overwrite: bool 
     >>> fpiwarp.load_spec(path).dst.tolist() == f.dst.tolist()
     True
     """
-    from .io import atomic_write
+    from .io.images import atomic_write
 
     text = json.dumps(to_spec(transform), indent=2) + "\n"
     atomic_write(path, lambda f: f.write(text.encode("utf-8")), overwrite=overwrite)

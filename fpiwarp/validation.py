@@ -26,9 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._errors import ArgumentError, ArgumentTypeError, SizeLimitError
-from ._sampling import DTYPES, MODES, ORDERS
-from ._transform import Transform
+from .errors import ArgumentError, ArgumentTypeError, SizeLimitError
+from .maps.transform import Transform
+from .sampling.sampler import DTYPES, MODES, ORDERS
 
 __all__ = [
     "CVAL_LIMIT",

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import fpiwarp
-from fpiwarp import cli
+from fpiwarp.cli import commands as cli
 
 #: (class, the standard exception it still is)
 HIERARCHY = [
@@ -37,7 +37,7 @@ def test_errors_are_fpiwarp_errors_and_keep_their_standard_base(cls, standard):
 
 
 def test_every_error_class_of_errors_module_reports_as_fpiwarp():
-    from fpiwarp import _errors
+    from fpiwarp import errors as _errors
 
     for name in _errors.__all__:
         cls = getattr(_errors, name)
@@ -46,7 +46,7 @@ def test_every_error_class_of_errors_module_reports_as_fpiwarp():
 
 
 def test_canonical_output_exists_error_message():
-    from fpiwarp._errors import OutputExistsError
+    from fpiwarp.errors import OutputExistsError
 
     exc = OutputExistsError("out.png")
     assert exc.errno == errno.EEXIST and str(exc) == "out.png already exists (pass overwrite=True to replace it)"

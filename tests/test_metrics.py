@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
-from strategies import quads
+from support.strategies import quads
 
 import fpiwarp
 from fpiwarp import FPI, ConstrainedFPI, RLinear

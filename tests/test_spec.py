@@ -156,7 +156,7 @@ def test_a_compound_applies_its_steps_in_order():
 
 
 def test_a_local_spec_builds_a_local_deformation():
-    local = pytest.importorskip("fpiwarp._local")
+    local = pytest.importorskip("fpiwarp.maps.local")
     dst = [[0, 0], [10, 0], [11, 11], [0, 10]]
     t = build_transform({"src": SQUARE, "dst": dst, "edges": [3, 1]})
     assert isinstance(t, local.LocalDeformation)
@@ -215,7 +215,7 @@ def test_load_spec_reads_a_file_and_names_it(tmp_path):
 def _round_trip_cases():
     cases = [fpiwarp.FPI(SQUARE, MOVED), fpiwarp.Compound([fpiwarp.FPI(SQUARE, MOVED), fpiwarp.FPI(MOVED, SQUARE)])]
     try:
-        from fpiwarp._local import LocalDeformation
+        from fpiwarp.maps.local import LocalDeformation
     except ImportError:
         return cases
     return cases + [LocalDeformation(SQUARE, [[0, 0], [10, 0], [11, 11], [0, 10]], edges=(3, 1))]

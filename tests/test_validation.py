@@ -15,7 +15,7 @@ import fpiwarp
 from fpiwarp import ArgumentError, ArgumentTypeError, FpiwarpError, SizeLimitError
 from fpiwarp.backends import REGISTRY, backend_capabilities
 from fpiwarp.backends.capabilities import MAX_DEVICE_SIDE, MAX_ELEMENTS
-from fpiwarp.params import MAX_STAGES
+from fpiwarp.block import MAX_STAGES
 from fpiwarp.validation import CVAL_LIMIT, check_cval, check_order, check_output_shape, check_sizes
 
 H, W = 24, 32

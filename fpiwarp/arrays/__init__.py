@@ -25,16 +25,16 @@ also run on the host backends, through a numpy view.
 stacks (N, H, W[, C]), or (N, C, H, W) with ``channels="first"``, and
 point sets (N, ..., 2) of the same kinds the same way (Warp/DLPack/CUDA
 on "warp", pyopencl on "opencl"), one launch per kind of map, in place
-(``fpiwarp.arrays.batch_path``).
+(``fpiwarp.batch.arrays``).
 
 Nothing here imports torch, CuPy or JAX: arrays are recognized by their
 protocols and by the types of libraries already imported
 (:func:`array_info`).
 """
 
+from ..backends.opencl.arrays import opencl_queue, to_opencl
 from .dispatch import CHANNELS, check_channels
 from .kinds import DEFAULT_BACKENDS, KINDS, ArrayInfo, array_info, choose_backend
-from .opencl_path import opencl_queue, to_opencl
 
 __all__ = ["CHANNELS", "DEFAULT_BACKENDS", "KINDS", "ArrayInfo", "array_info", "check_channels", "choose_backend",
            "opencl_queue", "to_opencl"]

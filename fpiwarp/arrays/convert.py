@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 
-from .._errors import ArgumentTypeError, DeviceMismatchError
+from ..errors import ArgumentTypeError, DeviceMismatchError
 from .kinds import ArrayInfo
 
 #: How to turn a DLPack-capable object into each library's array, by the

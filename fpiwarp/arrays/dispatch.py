@@ -1,14 +1,14 @@
 """warp_image and map_points for every kind of array: the backend chosen
 from where the data lives, the result of the input's kind, ``out=`` and
 the channel layout. numpy in, numpy out stays the path of
-:mod:`fpiwarp._warp`; everything else comes here.
+:mod:`fpiwarp.warping`; everything else comes here.
 """
 
 import numpy as np
 
-from .._errors import ArgumentError, DeviceMismatchError
 from ..backends import backend_capabilities, check_backend_name
 from ..block import pack
+from ..errors import ArgumentError, DeviceMismatchError
 from ..validation import (
     check_backend_call,
     check_cval,
@@ -155,7 +155,7 @@ def _host(image, info, transform, output_shape, order, mode, cval, name, backend
 
 
 def _warp(image, info, transform, output_shape, order, mode, cval, backend_options, antialias, out, channels):
-    from . import warp_path  # noqa: PLC0415
+    from ..backends.nvwarp import arrays as warp_path  # noqa: PLC0415
 
     backend, src, dtype, given = warp_path.image_source(image, info, channels)
     shape, squeeze = hwc_shape(given, channels)
@@ -173,7 +173,7 @@ def _warp(image, info, transform, output_shape, order, mode, cval, backend_optio
 
 
 def _opencl(image, transform, output_shape, order, mode, cval, backend_options, antialias, out, channels):
-    from . import opencl_path  # noqa: PLC0415
+    from ..backends.opencl import arrays as opencl_path  # noqa: PLC0415
 
     with opencl_path.lock:  # the kept source and output arrays
         return _opencl_locked(image, transform, output_shape, order, mode, cval, backend_options, antialias, out,
@@ -181,7 +181,7 @@ def _opencl(image, transform, output_shape, order, mode, cval, backend_options, 
 
 
 def _opencl_locked(image, transform, output_shape, order, mode, cval, backend_options, antialias, out, channels):
-    from . import opencl_path  # noqa: PLC0415
+    from ..backends.opencl import arrays as opencl_path  # noqa: PLC0415
 
     be, src, dtype, given = opencl_path.image_source(image, channels)
     shape, squeeze = hwc_shape(given, channels)
@@ -203,7 +203,7 @@ def _opencl_locked(image, transform, output_shape, order, mode, cval, backend_op
 
 
 def _texture(image, transform, output_shape, order, mode, cval, backend_options, antialias, out):
-    from . import gl_path  # noqa: PLC0415
+    from ..backends.gl import arrays as gl_path  # noqa: PLC0415
 
     dtype, shape = gl_path.texture_format(image)
     oshape, order, mode, cval, options, inverted = check_device_warp(
@@ -221,11 +221,11 @@ def map_points(transform, points, backend, out, host_map):
     if info.kind in ("numpy", "host"):
         return copy_points_out(host_map(transform, points, backend=name), out, np.asarray(points))
     if info.kind == "opencl" and name == "opencl":
-        from . import opencl_path  # noqa: PLC0415
+        from ..backends.opencl import arrays as opencl_path  # noqa: PLC0415
 
         return opencl_path.map_points(transform, points, out)
     if info.kind in ("warp", "dlpack", "cuda_array_interface") and name == "warp":
-        from . import warp_path  # noqa: PLC0415
+        from ..backends.nvwarp import arrays as warp_path  # noqa: PLC0415
 
         return warp_path.map_points(transform, points, info, out)
     if info.kind in ("warp", "dlpack") and info.on_host and name in HOST_BACKENDS:

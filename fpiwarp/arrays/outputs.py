@@ -7,7 +7,7 @@ copy into a numpy ``out=`` of the host paths. The device paths
 
 import numpy as np
 
-from .._errors import ArgumentError, DeviceMismatchError
+from ..errors import ArgumentError, DeviceMismatchError
 
 
 def overlap_error(what):

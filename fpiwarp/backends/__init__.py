@@ -14,7 +14,7 @@ import importlib
 import threading
 from dataclasses import dataclass
 
-from .._errors import ArgumentError, BackendUnavailableError
+from ..errors import ArgumentError, BackendUnavailableError
 from . import capabilities as _caps
 from .capabilities import Capabilities
 
@@ -28,14 +28,14 @@ class _Entry:
 
 
 REGISTRY = {
-    "numpy": _Entry("fpiwarp.backends.numpy_backend", None, capabilities=_caps.NUMPY),
+    "numpy": _Entry("fpiwarp.backends.numpy.backend", None, capabilities=_caps.NUMPY),
     "opencl": _Entry(
-        "fpiwarp.backends.opencl_backend",
+        "fpiwarp.backends.opencl.backend",
         "opencl",
         "an OpenCL driver (e.g. Debian's pocl-opencl-icd)",
         capabilities=_caps.OPENCL,
     ),
-    "warp": _Entry("fpiwarp.backends.warp_backend", "warp", capabilities=_caps.WARP),
+    "warp": _Entry("fpiwarp.backends.nvwarp.backend", "warp", capabilities=_caps.WARP),
     "gl": _Entry(
         "fpiwarp.backends.gl",
         "gl",

@@ -6,7 +6,7 @@ kernels evaluate, which extra options it takes (:class:`BackendOption`),
 whether it warps a stack in one call (``batches``), whether it may be
 called from several threads at once (``thread_safe``) and whether it
 antialiases (``antialias``: ``warp_image(..., antialias=True)``, see
-:mod:`fpiwarp._antialias`). The registry in
+:mod:`fpiwarp.sampling.antialias`). The registry in
 :mod:`fpiwarp.backends` holds one record per backend, and
 :mod:`fpiwarp.validation` checks every call against it before the
 backend runs, so a call a backend cannot do fails with one line instead
@@ -15,8 +15,8 @@ of a driver error or an exhausted machine.
 
 from dataclasses import dataclass, field
 
-from .._sampling import DTYPES, MODES, ORDERS
-from ..params import MAX_STAGES
+from ..block import MAX_STAGES
+from ..sampling.sampler import DTYPES, MODES, ORDERS
 
 #: Values (rows × cols × channels) one call may read or write: the int32
 #: index range of the device kernels. Every backend shares it, so a call

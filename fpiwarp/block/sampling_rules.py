@@ -1,6 +1,6 @@
 """The sampling rules every kernel shares, as numbers kernels compare with.
 
-The rules themselves are described in :mod:`fpiwarp._sampling` (the numpy
+The rules themselves are described in :mod:`fpiwarp.sampling.sampler` (the numpy
 reference); this module holds the numbers they reach the kernels by, so
 that :mod:`fpiwarp.block.codegen` generates them for every language.
 """
@@ -13,7 +13,7 @@ ORDERS = (0, 1, 3)
 #: Source positions beyond this many pixels count as "outside" (cval).
 COORD_LIMIT = float(2**24)
 #: Antialiasing: at most this many sub-samples per axis of an output pixel's
-#: footprint (so at most its square per pixel; see fpiwarp._antialias).
+#: footprint (so at most its square per pixel; see fpiwarp.sampling.antialias).
 AA_MAX_TAPS = 16
 #: Antialiasing: a footprint axis of length L source pixels gets one
 #: sub-sample where L <= 1 + AA_SLACK (no shrinking: plain interpolation),

@@ -9,8 +9,8 @@ the interactive viewer of ``fpiwarp preview``.
   :func:`run` (the window).
 
 Built on the "gl" backend (:mod:`fpiwarp.backends.gl`), whose programs,
-mesh path and thread rules it shares. ``fpiwarp.gl`` and
-``fpiwarp.preview`` are the historical names of this package's parts.
+mesh path and thread rules it shares. :mod:`.examples` embeds the
+renderer in a Qt and a moderngl-window application.
 """
 
 from .app import Editor, max_distortion, run

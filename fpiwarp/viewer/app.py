@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import BackendUnavailableError, DegenerateQuadError
-from .._fpi import FPI
-from .._transform import Compound
-from ..io import write_image
+from ..errors import BackendUnavailableError, DegenerateQuadError
+from ..io.images import write_image
+from ..maps.fpi import FPI
+from ..maps.transform import Compound
 from ..spec import save_spec
 from .renderer import Renderer
 
@@ -69,7 +69,7 @@ class Editor:
     """The viewer's state and actions, independent of any window toolkit.
 
     Positions are GL window coordinates (y up) of a viewport; the
-    :class:`~fpiwarp.gl.Renderer` converts them to output pixels.
+    :class:`~fpiwarp.viewer.Renderer` converts them to output pixels.
     """
 
     def __init__(self, renderer, image, transform=None, *, info=None, name="preview",
@@ -110,7 +110,7 @@ class Editor:
 
     def _build(self):
         if len(self.edges) == 2:
-            from .._local import LocalDeformation
+            from ..maps.local import LocalDeformation
 
             return LocalDeformation(self.src, self.dst, edges=tuple(self.edges))
         return FPI(self.src, self.dst)

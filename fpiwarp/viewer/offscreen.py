@@ -24,7 +24,7 @@ def render_image(image, transform, *, overlays=(), ctx=None, order=1, mode="cons
         The map from source to output coordinates (x = column, y = row).
     overlays : sequence of str, optional
         Names among "handles", "outline", "checkerboard", "heatmap" (the
-        :class:`~fpiwarp.gl.Renderer` attributes of those names).
+        :class:`~fpiwarp.viewer.Renderer` attributes of those names).
     ctx : moderngl.Context, optional
         Default the "gl" backend's headless context (EGL), the one context
         of the process: moderngl contexts in one thread would otherwise

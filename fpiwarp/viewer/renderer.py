@@ -60,14 +60,12 @@ from ..backends.gl import (
     MeshBuffers,
     ProgramKey,
     bound_framebuffer,
-    check_order_and_mode,
-    check_transform,
-    constant_dilation,
     draw_culled_mesh,
     grid_mesh,
     set_uniform,
 )
-from ..validation import check_antialias, check_cval, check_image
+from ..block import describe
+from ..validation import check_antialias, check_cval, check_image, check_mode, check_order, check_transform
 from .overlays import OverlayLayer, edge_curves, handle_triangles, outline_triangles
 
 METHODS = ("pixel", "mesh", "auto")
@@ -136,7 +134,7 @@ class Renderer:
     ``set_transform`` uploads values only: moving points compiles nothing.
     Programs are compiled once per kind of map (:attr:`compile_count`).
     In an application, call ``draw`` from the toolkit's paint callback
-    with the context current (see ``fpiwarp/examples/qt_embed.py`` and
+    with the context current (see ``fpiwarp/viewer/examples/qt_embed.py`` and
     ``mglw_embed.py``).
 
     Examples
@@ -147,7 +145,7 @@ class Renderer:
     >>> import numpy as np
     >>> import fpiwarp
     >>> from fpiwarp.backends import get_backend
-    >>> from fpiwarp.gl import Renderer
+    >>> from fpiwarp.viewer import Renderer
     >>> ctx = get_backend("gl").warper.ctx
     >>> renderer = Renderer(ctx)
     >>> renderer.set_image(np.full((48, 64, 3), 255, np.uint8))
@@ -167,7 +165,7 @@ class Renderer:
                  antialias=False):
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-        order, mode = check_order_and_mode(order, mode)
+        order, mode = check_order(order), check_mode(mode)
         self.ctx = ctx
         self._owns_warper = warper is None
         self.warper = warper if warper is not None else GLWarper(ctx)
@@ -245,7 +243,7 @@ class Renderer:
         check_transform(transform)
         forward = transform.params()
         self._blocks = {"mesh": forward}
-        self._dilation = constant_dilation(forward)
+        self._dilation = describe(forward).constant_dilation
         self.transform = transform
         self._upload(self._method())
         self.uploads += 1

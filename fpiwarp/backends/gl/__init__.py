@@ -1,7 +1,7 @@
 """The "gl" backend: GLSL shaders through moderngl, headless through EGL.
 
 Three paths share one shader include (``glsl/fpiwarp_map.glsl``), which
-mirrors :func:`fpiwarp.params.evaluate` and :mod:`fpiwarp._sampling`:
+mirrors :func:`fpiwarp.block.evaluate` and :mod:`fpiwarp.sampling.sampler`:
 
 * ``map_points``: a vertex shader evaluates the parameter block per point,
   captured by transform feedback;
@@ -40,11 +40,9 @@ Modules, one job each:
 * :mod:`.mesh`     the mesh path's grid and its culled, clipped draw;
 * :mod:`.targets`  textures and framebuffers reused between calls;
 * :mod:`.backend`  the registry's :class:`Backend`, :func:`warp_image_mesh`;
-* :mod:`.checks`   the argument checks of :mod:`fpiwarp.validation` the GL code uses.
 """
 
 from .backend import Backend, warp_image_mesh
-from .checks import check_order_and_mode, check_transform
 from .context import (
     GL_REQUIRE,
     bound_framebuffer,
@@ -56,7 +54,6 @@ from .context import (
     release_shared_context,
     shared_context,
 )
-from .kinds import constant_dilation, is_short_map, stage_kinds
 from .mesh import GL_CLIP_DISTANCE0, MeshBuffers, draw_culled_mesh, grid_mesh
 from .programs import (
     FULLSCREEN,
@@ -78,9 +75,9 @@ from .warper import POINT_CHUNK, GLWarper
 __all__ = [
     "FULLSCREEN", "GL_CLIP_DISTANCE0", "GL_REQUIRE", "HOT_ROWS", "MAX_PER_DRAW", "MAX_ROWS", "POINT_CHUNK",
     "Backend", "GLWarper", "MeshBuffers", "ProgramCache", "ProgramKey",
-    "bound_framebuffer", "check_order_and_mode", "check_thread", "check_transform", "claim_shared_context",
-    "constant_dilation", "create_context", "draw_culled_mesh", "flat_value_sources", "fragment_defines",
-    "grid_mesh", "is_short_map", "map_kind", "owner_thread", "probe", "release_shared_context",
-    "renders_rgb32ui", "set_uniform", "shader_source", "shared_context", "stage_kinds", "stages_define",
+    "bound_framebuffer", "check_thread", "claim_shared_context",
+    "create_context", "draw_culled_mesh", "flat_value_sources", "fragment_defines",
+    "grid_mesh", "map_kind", "owner_thread", "probe", "release_shared_context",
+    "renders_rgb32ui", "set_uniform", "shader_source", "shared_context", "stages_define",
     "warp_image_mesh",
 ]

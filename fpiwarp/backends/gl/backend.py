@@ -5,14 +5,7 @@ import numpy as np
 
 from ...block import describe
 from ...block.many import BlockStack
-from ...validation import (
-    check_cval,
-    check_image,
-    check_map_size,
-    check_output_shape,
-    check_sizes,
-    check_warp_options,
-)
+from ...validation import check_cval, check_image, check_map_size, check_output_shape, check_sizes, check_warp_options
 from .context import check_thread, shared_context
 from .warper import GLWarper
 

@@ -17,12 +17,12 @@ host only chooses whether they are forwarded (:func:`flat_value_sources`).
 import re
 from dataclasses import dataclass, replace
 
-from ... import params as P
+from ... import block as P
 from ...block import MAX_ROWS as MAX_BLOCK_ROWS
+from ...block import describe
 from ...block.codegen import glsl_defines
 from ...block.sampling_rules import MODES
 from ...resources import source
-from .kinds import stage_kinds
 
 #: The full-screen vertex shader, which forwards per-draw values to the
 #: fragment stage as flat varyings (see :func:`flat_value_sources`).
@@ -58,7 +58,7 @@ def stages_define(kinds):
 def map_kind(block):
     """The ``FPW_STAGES`` define that specializes a program to the kind of
     map in ``block`` (see :func:`stages_define`)."""
-    return stages_define(stage_kinds(block))
+    return stages_define([(s.core, s.n_regions) for s in describe(block).stages])
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,7 @@ class ProgramKey:
         one kind of map; None: the kind is read from the block at run time.
     order, mode
         Sampling order (0, 1, 3) and border mode (a name of
-        :data:`fpiwarp._sampling.MODES`), for programs that sample.
+        :data:`fpiwarp.sampling.sampler.MODES`), for programs that sample.
     source
         The source texture's format for the sampler: "unorm" (uint8 read
         normalized), "int" (uint16), "float", "hw" (the texture unit

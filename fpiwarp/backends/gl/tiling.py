@@ -12,7 +12,7 @@ size limit.
 import moderngl
 import numpy as np
 
-from ..._sampling import to_dtype
+from ...sampling.sampler import to_dtype
 from .programs import set_uniform
 
 #: Texture formats of the software sampler's source, by image dtype:

@@ -17,10 +17,10 @@ import sys
 import moderngl
 import numpy as np
 
-from ... import params as P
+from ... import block as P
 from ...block import describe
+from ...validation import check_mode, check_order
 from . import readback
-from .checks import check_order_and_mode
 from .context import bound_framebuffer, create_context
 from .mesh import MeshBuffers, draw_culled_mesh, grid_mesh
 from .programs import FULLSCREEN, MAX_ROWS, ProgramCache, ProgramKey, set_uniform
@@ -40,7 +40,7 @@ HW_MODES = ("constant", "edge", "wrap")
 def check_sampling(image, order, mode, cval):
     """The image as a contiguous array and cval as (C,) float64, after
     checking order and mode."""
-    check_order_and_mode(order, mode)
+    check_order(order), check_mode(mode)
     c = image.shape[2]
     cval = np.zeros(c) if cval is None else np.broadcast_to(np.asarray(cval, np.float64), (c,))
     return np.ascontiguousarray(image), cval
@@ -204,7 +204,7 @@ class GLWarper:
         0 and 1, modes constant/edge/wrap): faster, but bilinear weights are
         quantized by the hardware, so results may differ from the reference
         by a level or so. Sources above the size limit use the software path.
-        ``antialias=True`` averages each pixel's footprint (fpiwarp._antialias;
+        ``antialias=True`` averages each pixel's footprint (fpiwarp.sampling.antialias;
         software sampling, FPW_ANTIALIAS in glsl/fpiwarp_map.glsl).
         """
         return self.warp_block(image, transform.inverse.params(), output_shape, order=order, mode=mode, cval=cval,

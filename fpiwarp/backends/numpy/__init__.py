@@ -1,0 +1,1 @@
+"""The ``"numpy"`` backend: the float64 reference (:mod:`.backend`)."""

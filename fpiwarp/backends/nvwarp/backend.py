@@ -1,0 +1,435 @@
+"""The ``"warp"`` backend: NVIDIA Warp kernels on CUDA or Warp's CPU device.
+
+The map is packed once on the host (:meth:`fpiwarp.Transform.params`) and
+uploaded as an array of ``vec4`` rows; the kernels in
+:mod:`fpiwarp.kernels.nvwarp.map` are compiled once per device and cached on
+disk by Warp (its default cache directory, or ``WARP_CACHE_PATH``).
+
+Device choice: the ``device`` argument of :class:`Backend`, else the
+environment variable ``FPIWARP_WARP_DEVICE`` (``"cpu"``, ``"cuda:0"``, ...),
+else ``cuda:0`` when CUDA is available and ``cpu`` otherwise.
+
+Warp's CPU device runs each launch on one thread, so on the CPU a large
+call is split into bands of rows (ranges of points) launched from a small
+thread pool; Warp releases the GIL while a CPU kernel runs. The number of
+threads comes from the ``threads`` argument, else ``FPIWARP_WARP_THREADS``,
+else the CPUs this process may use.
+
+On the CPU the kernels read and write the caller's numpy arrays in place
+(no copies); on CUDA the device buffers are kept and reused while calls
+keep the same shape.
+"""
+
+import contextlib
+import ctypes
+import itertools
+import operator
+import os
+import threading
+import weakref
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from ...block import MAX_ROWS, describe
+from ...block.sampling_rules import MODES
+from ...errors import ArgumentError
+from .prepared import BoundMap, JobCache
+
+#: Environment variable naming the Warp device, e.g. "cpu" or "cuda:0".
+DEVICE_ENV = "FPIWARP_WARP_DEVICE"
+#: Environment variable with the number of CPU threads (CPU device only).
+THREADS_ENV = "FPIWARP_WARP_THREADS"
+#: Below this many work items a CPU call is one launch on the calling thread.
+MIN_ITEMS_PER_THREAD = 1 << 14
+
+_TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
+_init_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def _quiet_native_stderr():
+    """Silence C-level stderr while Warp initializes on a machine without a
+    CUDA driver, where its native library prints a warning we do not need."""
+    try:
+        ctypes.CDLL("libcuda.so.1")
+        has_driver = True
+    except OSError:
+        has_driver = False
+    if has_driver:
+        yield
+        return
+    try:
+        saved = os.dup(2)
+    except OSError:  # pragma: no cover - no stderr to silence
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
+def _warp():
+    """Import and initialize Warp quietly, once; return the module."""
+    import warp as wp
+
+    with _init_lock:
+        wp.config.quiet = True  # Warp < 1.10
+        if hasattr(wp, "LOG_WARNING"):
+            wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+        with _quiet_native_stderr():
+            wp.init()
+    return wp
+
+
+def warp_module():
+    """Warp, imported and initialized quietly (once); for modules that
+    hand this backend Warp arrays (:mod:`fpiwarp.arrays`)."""
+    return _warp()
+
+
+def _device_name(wp, device=None):
+    """The device to use: argument, else the environment, else cuda:0 or cpu."""
+    name = device or os.environ.get(DEVICE_ENV, "").strip()
+    if not name:
+        return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
+    known = [str(d) for d in wp.get_devices()]
+    if name not in known:
+        raise ArgumentError(f"Warp device {name!r} is not available here; choose from {known}")
+    return name
+
+
+def _thread_count(threads=None):
+    """Threads for CPU launches: argument, else the environment, else the CPUs."""
+    source = "threads"
+    if threads is None:
+        value = os.environ.get(THREADS_ENV, "").strip()
+        if not value:
+            try:
+                return len(os.sched_getaffinity(0))
+            except AttributeError:  # pragma: no cover - not Linux
+                return os.cpu_count() or 1
+        source, threads = THREADS_ENV, value
+    try:
+        count = int(threads) if isinstance(threads, str) else operator.index(threads)
+    except (TypeError, ValueError):
+        count = 0
+    if isinstance(threads, bool) or count < 1:
+        raise ArgumentError(f"{source} must be a positive integer, got {threads!r}")
+    return count
+
+
+def probe():
+    """None if Warp imports and the chosen device exists, else why not."""
+    try:
+        import warp  # noqa: F401
+    except ImportError:
+        return "warp-lang is not installed"
+    wp = _warp()
+    try:
+        name = _device_name(wp)
+    except ValueError as exc:
+        return f"{exc} (set by {DEVICE_ENV})"
+    try:
+        _thread_count()
+    except ValueError as exc:
+        return str(exc)
+    if name == "cpu" and not wp.is_cpu_available():
+        return "Warp's CPU device is not available (its LLVM compiler could not load)"
+    return None
+
+
+class Backend:
+    """Evaluate maps with Warp kernels on one device (see the module docstring).
+
+    Parameters
+    ----------
+    device : str, optional
+        A Warp device name such as ``"cpu"`` or ``"cuda:0"``; default from
+        ``FPIWARP_WARP_DEVICE``, else CUDA when present, else the CPU.
+    threads : int, optional
+        CPU threads for large calls on the CPU device; default from
+        ``FPIWARP_WARP_THREADS``, else the CPUs this process may use.
+
+    The kernels are loaded (compiled, or read from Warp's disk cache) here.
+    """
+
+    name = "warp"
+
+    def __init__(self, device=None, threads=None):
+        self._wp = wp = _warp()
+        self.device = wp.get_device(_device_name(wp, device))
+        self._on_cpu = self.device.is_cpu
+        self.threads = _thread_count(threads) if self._on_cpu else 1
+        from fpiwarp.kernels.nvwarp import map as warp_map
+
+        self._k = warp_map
+        wp.load_module(warp_map, device=self.device)
+        self._lock = threading.Lock()
+        self._pool = ThreadPoolExecutor(self.threads, "fpiwarp-warp") if self.threads > 1 else None
+        if self._pool is not None:  # its idle threads end with the backend object
+            weakref.finalize(self, self._pool.shutdown, wait=False)
+        self._block = wp.zeros(MAX_ROWS, dtype=wp.vec4, device=self.device)
+        self._block_staging = self._block if self._on_cpu else wp.zeros_like(self._block, device="cpu", pinned=True)
+        self._block_host = self._block_staging.numpy()  # a (rows, 4) float32 view of host memory
+        self._buffers = {}
+        self._jobs = JobCache()  # prepared jobs of plain warp_image calls
+        self.block_kind = None  # what the kernels specialize on, of the block uploaded last
+        self._aa_loaded = False  # the antialiased kernels' module, loaded on first use
+        self._batch_runner = None  # the batch kernels, loaded on first use
+
+    def __repr__(self):
+        return f"<fpiwarp warp backend on {self.device}, {self.threads} thread(s)>"
+
+    def band_count(self, rows, cols=None):
+        """Bands of rows a launch over (rows, cols) is split into: one per
+        thread on the CPU where each gets enough work, else one."""
+        return min(self.threads, max(1, rows * (cols or 1) // MIN_ITEMS_PER_THREAD))
+
+    def run_launches(self, launches):
+        """Replay recorded launches (``Launch.launch``), from the thread pool
+        when there are several (the bands of one call)."""
+        if len(launches) == 1:
+            launches[0].launch()
+            return
+        for future in [self._pool.submit(launch.launch) for launch in launches]:
+            future.result()
+
+    def _launch(self, kernel, rows, cols, inputs, row_items=None):
+        """Launch ``kernel`` over (rows, cols), or over rows when cols is None
+        (each row ``row_items`` items of work, for the bands); the kernel's
+        last input is the first row. On the CPU, large launches are split
+        into one band of rows per thread."""
+        wp = self._wp
+        bands = self.band_count(rows, cols or row_items)
+
+        def launch(r0, r1):
+            dim = r1 - r0 if cols is None else (r1 - r0, cols)
+            wp.launch(kernel, dim=dim, inputs=[*inputs, r0], device=self.device)
+
+        if bands == 1:
+            launch(0, rows)
+            return
+        cuts = [rows * b // bands for b in range(bands + 1)]
+        futures = [self._pool.submit(launch, r0, r1) for r0, r1 in itertools.pairwise(cuts)]
+        for future in futures:
+            future.result()
+
+    def _upload_block(self, transform):
+        """Write the map's parameter block into the persistent device buffer
+        (on CUDA through a pinned host copy of it). A block no kernel knows
+        raises ValueError before the upload (:func:`fpiwarp.block.describe`)."""
+        block = transform.params()
+        kind = describe(block)
+        rows = block.shape[0]
+        self._block_host[:rows] = block
+        if not self._on_cpu:
+            self._wp.copy(self._block, self._block_staging, count=rows)
+        self.block_kind = tuple((s.core, s.n_regions) for s in kind.stages)
+        return self._block
+
+    def _buffer(self, key, shape, dtype):
+        """A device array kept across calls while ``key``'s shape and dtype hold."""
+        wp = self._wp
+        arr = self._buffers.get(key)
+        if arr is None or arr.shape != shape or arr.dtype != dtype:
+            arr = wp.empty(shape, dtype=dtype, device=self.device)
+            self._buffers[key] = arr
+        return arr
+
+    def _to_device(self, key, data, dtype):
+        """``data`` on the device: aliased on the CPU, copied into a kept buffer on CUDA."""
+        wp = self._wp
+        if self._on_cpu:
+            return wp.array(data, dtype=dtype, device="cpu", copy=False)
+        shape = data.shape[:-1] if dtype is wp.vec2d else data.shape
+        arr = self._buffer(key, shape, dtype)
+        arr.assign(data)
+        return arr
+
+    def map_points(self, transform, points):
+        """Map float64 (..., 2) points; float64 out, float32 arithmetic on the device."""
+        wp = self._wp
+        shape = points.shape
+        flat = np.ascontiguousarray(points.reshape(-1, 2), dtype=np.float64)
+        n = flat.shape[0]
+        if n == 0:
+            return np.empty(shape, dtype=np.float64)
+        with self._lock:
+            blk = self._upload_block(transform)
+            src = self._to_device("points", flat, wp.vec2d)
+            if self._on_cpu:
+                result = np.empty_like(flat)
+                out = wp.array(result, dtype=wp.vec2d, device="cpu", copy=False)
+            else:
+                out = self._buffer("mapped", (n,), wp.vec2d)
+            self._launch(self._k.map_points_kernel, n, None, [blk, src, out])
+            if not self._on_cpu:
+                result = out.numpy()
+        return result.reshape(shape)
+
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval, antialias=False):
+        """Backward warp: each output pixel samples the source at ``transform.inverse``
+        (antialiased: averaged over its footprint, see fpiwarp.sampling.antialias)."""
+        with self._lock:
+            if not antialias:  # a job per kind of call (kernel specialized for the map's kind)
+                block = self._upload_block(transform.inverse)
+                job = self._jobs.get(self, block, image, output_shape, order, mode, cval, self.block_kind)
+                return job.run(image)
+            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval, antialias=antialias)
+            job.set_map(transform)
+            job.launch()
+            return job.read()
+
+    def warp_into(self, image, transform, output_shape, out, *, order, mode, cval, antialias=False):
+        """:meth:`warp_image` on Warp arrays of this device: ``image``
+        (H, W, C) read and ``out`` (rows, cols, C) written in place, any
+        strides; returns ``out`` (on CUDA without waiting for the kernel)."""
+        with self._lock:
+            job = self.prepare_warp(image, output_shape, order=order, mode=mode, cval=cval, antialias=antialias,
+                                    out=out)
+            job.set_map(transform)
+            job.launch()
+        return out
+
+    def map_points_into(self, transform, points, out):
+        """:meth:`map_points` on Warp arrays of ``vec2d`` of this device,
+        read and written in place; returns ``out``."""
+        with self._lock:
+            blk = self._upload_block(transform)
+            if points.shape[0]:
+                self._launch(self._k.map_points_kernel, points.shape[0], None, [blk, points, out])
+        return out
+
+    def bind(self, transform):
+        """``transform`` prepared for many images (:class:`~.warp_prepared.BoundMap`):
+        its block packed and uploaded once."""
+        return BoundMap(self, transform)
+
+    def batches(self):
+        """The :class:`~fpiwarp.backends.nvwarp.batch.BatchRunner` of this
+        backend; its kernels are loaded on first use."""
+        from fpiwarp.kernels.nvwarp import batch as warp_batch  # noqa: PLC0415 - compiled only when asked for
+
+        from .batch import BatchRunner  # noqa: PLC0415
+
+        with self._lock:
+            if self._batch_runner is None:
+                self._wp.load_module(warp_batch, device=self.device)
+                self._batch_runner = BatchRunner(self._wp, self.device, self._on_cpu, self._launch, warp_batch)
+        return self._batch_runner
+
+    def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):
+        """A validated (N, H, W, C) stack warped by one map or one map per
+        image in one launch per kind (see :mod:`fpiwarp.backends.nvwarp.batch`;
+        ``transfer``: how a stack reaches a CUDA device, "serial" or "pipelined")."""
+        runner = self.batches()
+        with self._lock:
+            return runner.warp_batch(stack, transforms, output_shape, order=order, mode=mode, cval=cval,
+                                     antialias=antialias, transfer=transfer)
+
+    def map_points_batch(self, transforms, points):
+        """float64 (N, P, 2) point sets mapped by one map or one map each, in one launch."""
+        runner = self.batches()
+        with self._lock:
+            return runner.map_points_batch(transforms, points)
+
+    def warp_batch_into(self, stack, transforms, output_shape, out, *, order, mode, cval, antialias=False):
+        """:meth:`warp_batch` on Warp arrays of this device: ``stack``
+        (N, H, W, C) read and ``out`` (N, rows, cols, C) written in place,
+        any strides; returns ``out`` (on CUDA without waiting)."""
+        del output_shape  # out's
+        runner = self.batches()
+        with self._lock:
+            return runner.warp_arrays(stack, out, transforms, order=order, mode=mode, cval=cval, antialias=antialias)
+
+    def map_points_batch_into(self, transforms, points, out):
+        """:meth:`map_points_batch` on (N, P) ``vec2d`` Warp arrays of this
+        device, in place; returns ``out``."""
+        runner = self.batches()
+        with self._lock:
+            return runner.map_points_arrays(transforms, points, out)
+
+    def antialias_kernels(self):
+        """The module of antialiased kernels, loaded on first use."""
+        from fpiwarp.kernels.nvwarp import antialias as warp_antialias  # noqa: PLC0415 - compiled only when asked for
+
+        if not self._aa_loaded:
+            self._wp.load_module(warp_antialias, device=self.device)
+            self._aa_loaded = True
+        return warp_antialias
+
+    def prepare_warp(self, image, output_shape, *, order, mode, cval, antialias=False, out=None):
+        """A :class:`DeviceWarp`: ``image`` on the device (aliased on the
+        CPU) and the output allocated, ready to warp by one map after
+        another with the kernel alone (what :meth:`warp_image` does once;
+        benchmarks time its steps). Arguments as :meth:`warp_image` receives them.
+
+        ``image`` may also be a Warp array (H, W, C) on this backend's
+        device, any strides, and ``out`` one of (rows, cols, C) of its
+        dtype: both are used in place (:mod:`fpiwarp.arrays`)."""
+        return DeviceWarp(self, image, output_shape, order, mode, cval, antialias, out)
+
+
+class DeviceWarp:
+    """One image on the device, warped by :meth:`set_map` then :meth:`launch`.
+
+    The buffers are the backend's kept ones (on CUDA), so the job is valid
+    until the next call on the backend; use it from one thread.
+    """
+
+    def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False, out=None):
+        be = self.backend = backend
+        wp = be._wp
+        oh, ow = self.output_shape = output_shape
+        channels = image.shape[2]
+        resident = isinstance(image, wp.array)  # a Warp array on this device (fpiwarp.arrays): read in place
+        dtype = np.dtype(wp.dtype_to_numpy(image.dtype)) if resident else image.dtype
+        scalar = wp.dtype_from_numpy(dtype)
+        cv = np.zeros(4, dtype=np.float32)
+        cv[:channels] = cval
+        self._src = image if resident else be._to_device("image", image, scalar)
+        if out is not None:  # a Warp array of (oh, ow, channels) on this device: written in place
+            self._result, self._out = None, out
+        elif be._on_cpu:
+            self._result = np.empty((oh, ow, channels), dtype=dtype)
+            self._out = wp.array(self._result, dtype=scalar, device="cpu", copy=False)
+        else:
+            self._result = None
+            self._out = be._buffer("warped", (oh, ow, channels), scalar)
+        self._kernel = None  # chosen by set_map, for the map's kind
+        self._tail = [wp.vec4(*cv.tolist())]
+        self._sampling = (int(order), channels, MODES.index(mode), dtype)
+        if antialias:  # one kernel for every order and map, which takes them as arguments
+            self._kernel = be.antialias_kernels().warp_antialias
+            self._tail = [int(order), MODES.index(mode), self._tail[0], _TOP[dtype]]
+        self._antialias = antialias
+        self._block = None
+
+    def set_map(self, transform):
+        """Upload the parameter block of ``transform.inverse`` (the map from
+        output to source)."""
+        be = self.backend
+        self._block = be._upload_block(transform.inverse)
+        if not self._antialias:
+            from fpiwarp.kernels.nvwarp import kinds as warp_kinds  # noqa: PLC0415 - imported with Warp
+
+            self._kernel = warp_kinds.image_kernel(be.block_kind, *self._sampling)
+
+    def launch(self):
+        """Run the kernel over the output (on CUDA without waiting for it)."""
+        oh, ow = self.output_shape
+        self.backend._launch(self._kernel, oh, ow, [self._block, self._src, self._out, *self._tail])
+
+    def finish(self):
+        """Wait until the launched kernels are done."""
+        self.backend._wp.synchronize_device(self.backend.device)
+
+    def read(self):
+        """The output as a numpy array (copied back on CUDA)."""
+        return self._result if self._result is not None else self._out.numpy()

@@ -1,0 +1,306 @@
+"""Batches on the "opencl" backend: many images (or point sets) per launch.
+
+The kernels of ``kernels/fpiwarp.cl`` built with ``-DFW_BATCH`` take a
+third launch dimension: item z reads block z of a buffer of stacked
+parameter blocks and image ``which[z]`` of a stacked source and output
+(see ``FW_BATCH_SELECT`` there). Everything else is the single image's
+code, so a batch equals the loop of :meth:`Backend.warp_image` bit for
+bit.
+
+Kinds of map
+------------
+A program is specialised for one kind of map (:func:`kind_options`), so
+the maps of a batch are grouped by kind and each group runs as one
+launch: a batch whose maps are all of one kind (one map for all, or N
+FPIs of the same number of control points) is one launch; a batch
+mixing k kinds is k launches. Nothing is refused for mixing kinds.
+
+Bounds
+------
+A launch reads its blocks from ``__constant`` memory, so it holds at most
+``max_constant_buffer_size // block bytes`` maps (a larger group is split
+into launches of that many). The images go through device buffers in
+chunks of at most :data:`CHUNK_BYTES` (and the device's
+``max_mem_alloc_size``), never fewer than one image, so a batch is never
+refused for its size if each image passes :mod:`fpiwarp.validation`.
+
+Transfers
+---------
+On a device sharing host memory (PoCL on a CPU) the output chunks are the
+caller's array itself (``USE_HOST_PTR``) and one chunk is the whole batch
+up to :data:`CHUNK_BYTES`. On other devices (a GPU) the batch goes in
+chunks of :data:`PIPELINE_CHUNK_BYTES` through two sets of device buffers
+and three queues, so that the upload of chunk i + 1 and the download of
+chunk i - 1 overlap the kernels of chunk i (``transfer="pipelined"``;
+``"serial"`` does the same on one queue, for comparison). No pinned
+staging buffers yet: on a GPU the driver stages pageable numpy memory.
+
+Device arrays
+-------------
+:class:`BatchLaunch` enqueues a batch's kernels on any device buffers
+(the source from image a on, the output likewise): :func:`warp_arrays`
+and :func:`map_points_arrays` run them on ``pyopencl.array.Array`` s
+in place (:mod:`fpiwarp.arrays` batches), :func:`warp_batch` is the
+host-array front end.
+"""
+
+import weakref
+
+import numpy as np
+
+from ...block import describe
+from ...block.many import BlockStack
+from .tiles import global_size, tiled_program
+
+#: Bytes of input plus output one chunk of a batch holds at most (each
+#: chunk holds at least one image).
+CHUNK_BYTES = 256 << 20
+#: Chunk size of the pipelined transfers: small enough that a batch is a
+#: few chunks whose copies overlap the kernels of their neighbours.
+PIPELINE_CHUNK_BYTES = 32 << 20
+#: The ways a batch may reach the device (see the module docstring).
+TRANSFERS = ("zero_copy", "pipelined", "serial")
+
+
+_KEPT = weakref.WeakKeyDictionary()  # backend -> {role: Buffer}: device buffers kept across batches
+
+
+def kept_buffer(backend, role, nbytes, flags):
+    """A device buffer of at least ``nbytes`` for ``role``, kept across
+    calls on ``backend`` (a larger need replaces it), as the backend
+    keeps its own: allocating and first touching a chunk's buffer costs
+    about as much as copying into it."""
+    cl = _cl()
+    kept = _KEPT.setdefault(backend, {})
+    buf = kept.get(role)
+    if buf is None or buf.size < nbytes:
+        kept.pop(role, None)
+        buf = kept[role] = cl.Buffer(backend.context, flags, max(nbytes, 4))
+    return buf
+
+
+def _cl():
+    import pyopencl as cl  # noqa: PLC0415 - optional dependency, imported lazily
+
+    return cl
+
+
+def block_groups(transforms, n, kind_options):
+    """Stacked float32 blocks by kind: a list of (kind options, block rows
+    (0: one block shared by all images), blocks (k, rows, 4), image
+    indices (k,) int32), the kind named by ``kind_options`` (the
+    backend's). One map gives one group of all ``n`` images.
+    A block no kernel knows raises ValueError (:func:`describe`) first.
+    The blocks are packed together and each distinct kind described
+    once (:class:`fpiwarp.block.many.BlockStack`)."""
+    stack = BlockStack.of(transforms)
+    if len(stack) == 1:
+        return [(kind_options(describe(stack.array[0])), 0, stack.array, np.arange(n, dtype=np.int32))]
+    return [(kind, *stack.take(idx), idx) for kind, idx in stack.groups(kind_options)]
+
+
+def chunk_ranges(n, item_bytes, limit):
+    """[start, stop) ranges of at most ``limit`` bytes of ``item_bytes``
+    items each (at least one item per range) covering ``n`` items."""
+    per = max(1, int(limit // max(item_bytes, 1)))
+    return [(a, min(n, a + per)) for a in range(0, n, per)]
+
+
+def constant_bytes(backend):
+    """Bytes of ``__constant`` memory one launch's blocks may take."""
+    return backend.device.max_constant_buffer_size
+
+
+def _launches(backend, groups, a, b):
+    """(kind options, block rows, blocks, chunk-relative image indices) of
+    the launches for images [a, b): each kind's images in the chunk, split
+    so that a launch's blocks fit the device's constant memory."""
+    cap = constant_bytes(backend)
+    for kind, rows, blocks, images in groups:
+        keep = (images >= a) & (images < b)
+        if not keep.any():
+            continue
+        sel, idx = (blocks, images[keep]) if rows == 0 else (blocks[keep], images[keep])
+        per = len(idx) if rows == 0 else max(1, cap // (rows * 16))
+        for s in range(0, len(idx), per):
+            yield kind, rows, sel if rows == 0 else sel[s:s + per], (idx[s:s + per] - a).astype(np.int32)
+
+
+def _small_buffer(cl, context, array):
+    mf = cl.mem_flags
+    return cl.Buffer(context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(array))
+
+
+def default_transfer(backend):
+    """"zero_copy" on a device sharing host memory, else "pipelined"."""
+    return "zero_copy" if backend.zero_copy else "pipelined"
+
+
+class BatchLaunch:
+    """The kernels of one batch, ready to enqueue on device buffers.
+
+    ``stack_shape`` (N, H, W, C) and ``dtype`` describe the images,
+    ``transforms`` the user's maps (one or N; the kernels read their
+    inverses). :meth:`enqueue` runs images [a, b) from any device buffer
+    holding them from image a on (``src``, with ``backend.image_slack``
+    bytes to spare past the last) into one for their outputs (``dst``):
+    host arrays, kept buffers or a caller's device arrays alike.
+    """
+
+    def __init__(self, backend, stack_shape, dtype, transforms, output_shape, *, order, mode, cval,
+                 antialias=False):
+        cl = self.cl = _cl()
+        n, self.h, self.w, c = stack_shape
+        self.backend, (self.oh, self.ow) = backend, output_shape
+        self.groups = block_groups([t.inverse for t in transforms], n, backend.kind_options)
+        self.sampling = (dtype, c, order, mode, self.ow, antialias)
+        self.cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
+        self.keep = []  # the launches' block and index buffers, alive as long as this object
+
+    def enqueue(self, queue, src, dst, a, b, wait_for=None):
+        """Enqueue the launches of images [a, b) (one per kind, and per
+        constant-memory load of blocks) after ``wait_for``; their events."""
+        cl, be, events = self.cl, self.backend, []
+        sizes = (np.int32(self.w), np.int32(self.h), dst, np.int32(self.ow), np.int32(self.oh), self.cval4)
+        for kind, rows, blocks, which in _launches(be, self.groups, a, b):
+            name, options, local = tiled_program(be, *self.sampling, kind)  # the single warp's tiles
+            kern = be.kernel(name, (*options, "-DFW_BATCH=1"))
+            self.keep.append((_small_buffer(cl, be.context, blocks), _small_buffer(cl, be.context, which)))
+            kern.set_args(self.keep[-1][0], src, *sizes, self.keep[-1][1], np.int32(rows))
+            events.append(cl.enqueue_nd_range_kernel(queue, kern, (*global_size(local, (self.oh, self.ow)), len(which)),
+                                                     (*local, 1), wait_for=wait_for))
+        return events
+
+
+def warp_batch(backend, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):
+    """Warp a validated (N, H, W, C) stack by one map or one per image
+    (``transforms``: the user's maps; the kernels read their inverses);
+    (N, rows, cols, C) of the stack's dtype. Call under the backend's lock."""
+    cl = _cl()
+    n = stack.shape[0]
+    out = np.empty((n, *output_shape, stack.shape[3]), dtype=stack.dtype)
+    transfer = transfer or default_transfer(backend)
+    if transfer not in TRANSFERS:
+        raise ValueError(f"transfer must be one of {TRANSFERS}, got {transfer!r}")
+    job = BatchLaunch(backend, stack.shape, stack.dtype, transforms, output_shape, order=order, mode=mode, cval=cval,
+                      antialias=antialias)
+    limit = min(CHUNK_BYTES if transfer == "zero_copy" else PIPELINE_CHUNK_BYTES, backend.device.max_mem_alloc_size)
+    chunks = chunk_ranges(n, stack[0].nbytes + out[0].nbytes, limit)
+    if transfer == "zero_copy":
+        _run_zero_copy(cl, backend, stack, out, chunks, job.enqueue)
+    else:
+        _run_copies(cl, backend, stack, out, chunks, job.enqueue, transfer == "pipelined")
+    return out
+
+
+def warp_arrays(backend, src, dst, transforms, *, order, mode, cval, antialias=False):
+    """Enqueue the warp of (N, H, W, C) ``pyopencl.array.Array`` ``src``
+    (C-contiguous, ``backend.image_slack`` bytes to spare in its buffer)
+    into (N, rows, cols, C) ``dst`` on the backend's queue, in place: one
+    launch per kind of map, no chunks, no copies. Returns ``dst`` without
+    waiting (takes the backend's lock)."""
+    with backend._lock:
+        job = BatchLaunch(backend, src.shape, src.dtype, transforms, dst.shape[1:3], order=order, mode=mode,
+                          cval=cval, antialias=antialias)
+        job.enqueue(backend.queue, src.data, dst.data, 0, src.shape[0])
+    return dst
+
+
+def _run_zero_copy(cl, backend, stack, out, chunks, launch):
+    """Each chunk copied into one device buffer; the kernels write the
+    caller's output in place (USE_HOST_PTR), made visible by a map."""
+    mf, queue = cl.mem_flags, backend.queue
+    per = chunks[0][1] - chunks[0][0]
+    src = kept_buffer(backend, "in0", per * stack[0].nbytes + backend.image_slack, mf.READ_ONLY)
+    for a, b in chunks:
+        cl.enqueue_copy(queue, src, stack[a:b])
+        dst = cl.Buffer(backend.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
+        launch(queue, src, dst, a, b, None)
+        mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
+        event.wait()
+        del mapped
+    queue.finish()
+
+
+def _run_copies(cl, backend, stack, out, chunks, launch, pipelined):
+    """Chunks through two sets of device buffers: uploads, kernels and
+    downloads on three queues ordered by events (pipelined), or all on
+    the backend's queue one after the other."""
+    mf, ctx = cl.mem_flags, backend.context
+    per = chunks[0][1] - chunks[0][0]
+    in_bytes, out_bytes = per * stack[0].nbytes + backend.image_slack, per * out[0].nbytes
+    slots = [(kept_buffer(backend, f"in{k}", in_bytes, mf.READ_ONLY), kept_buffer(backend, f"out{k}", out_bytes,
+                                                                                  mf.WRITE_ONLY))
+             for k in range(2 if pipelined else 1)]
+    up, down = (cl.CommandQueue(ctx), cl.CommandQueue(ctx)) if pipelined else (backend.queue, backend.queue)
+    pending = [([], []) for _ in slots]  # per slot: (its last kernels, its last download)
+    for i, (a, b) in enumerate(chunks):
+        s = i % len(slots)
+        src, dst = slots[s]
+        kernels_before, download_before = pending[s]
+        ev_up = cl.enqueue_copy(up, src, stack[a:b], is_blocking=False, wait_for=kernels_before or None)
+        ev_k = launch(backend.queue, src, dst, a, b, [ev_up, *download_before])
+        ev_down = cl.enqueue_copy(down, out[a:b], dst, is_blocking=False, wait_for=ev_k)
+        pending[s] = (ev_k, [ev_down])
+    for queue in {up, down, backend.queue}:
+        queue.finish()
+
+
+def map_points_batch(backend, transforms, points):
+    """Map float64 (N, P, 2) ``points[i]`` by ``transforms[i]`` (or all by
+    one map); float64 (N, P, 2). One launch per kind of map (and per
+    constant-memory load of blocks, and per :data:`CHUNK_BYTES` of point
+    sets). Call under the backend's lock."""
+    cl = _cl()
+    n, p, _ = points.shape
+    dtype = np.float64 if backend.has_fp64 else np.float32
+    pts = np.ascontiguousarray(points, dtype=dtype)
+    out = np.empty_like(pts)
+    if p == 0 or n == 0:
+        return out.astype(np.float64)
+    groups = block_groups(transforms, n, backend.kind_options)
+    limit = min(CHUNK_BYTES, backend.device.max_mem_alloc_size)
+    mf, ctx = cl.mem_flags, backend.context
+    for a, b in chunk_ranges(n, pts[0].nbytes, limit):
+        if backend.zero_copy:
+            src = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pts[a:b])
+            dst = cl.Buffer(ctx, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
+        else:
+            src = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=pts[a:b])
+            dst = cl.Buffer(ctx, mf.WRITE_ONLY, out[a:b].nbytes)
+        keep = _enqueue_points(cl, backend, groups, src, dst, p, a, b)  # noqa: F841 - alive until read
+        if backend.zero_copy:
+            mapped, event = cl.enqueue_map_buffer(backend.queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
+            event.wait()
+            del mapped
+        else:
+            cl.enqueue_copy(backend.queue, out[a:b], dst)
+        backend.queue.finish()
+    return out.astype(np.float64, copy=False)
+
+
+def map_points_arrays(backend, transforms, points, out):
+    """Enqueue the map of (N, P, 2) ``pyopencl.array.Array`` ``points``
+    (C-contiguous, the device's point dtype) into ``out`` of the same
+    shape on the backend's queue, in place: one launch per kind of map.
+    Returns ``out`` without waiting (takes the backend's lock)."""
+    n, p, _ = points.shape
+    if n and p:
+        groups = block_groups(transforms, n, backend.kind_options)
+        with backend._lock:
+            _enqueue_points(_cl(), backend, groups, points.data, out.data, p, 0, n)
+    return out
+
+
+def _enqueue_points(cl, backend, groups, src, dst, p, a, b):
+    """Enqueue map_points over point sets [a, b) held in ``src`` from set a
+    on: one launch per kind; returns the launches' small buffers."""
+    options = backend.point_options + (f"-DFW_LOCAL_X={backend.local_x}", "-DFW_BATCH=1")
+    total = -(-p // backend.local_x) * backend.local_x
+    keep = []
+    for kind, rows, blocks, which in _launches(backend, groups, a, b):
+        kern = backend.kernel("map_points", kind + options)
+        keep.append((_small_buffer(cl, backend.context, blocks), _small_buffer(cl, backend.context, which)))
+        kern.set_args(keep[-1][0], src, dst, np.int32(p), keep[-1][1], np.int32(rows))
+        cl.enqueue_nd_range_kernel(backend.queue, kern, (total, 1, len(which)), (backend.local_x, 1, 1))
+    return keep

@@ -1,0 +1,144 @@
+"""Prepared image warps of the ``"opencl"`` backend: one job per kind of call.
+
+A :class:`ClJob` holds what does not change between calls of one kind
+(image shape and dtype, output shape, order, mode, cval, antialiasing and
+the map's kind): its own kernel object with its arguments set, its own
+device buffers for the source and (small) outputs, the launch shape. A
+call copies the image in without waiting, launches, and reads the output
+back: one wait per call. On a CPU, large outputs are written in place and
+large sources read in place (USE_HOST_PTR), with no copy: at 4K float32
+RGB the upload was a fifth of the call. The kernel never reads past a
+source's last byte (uint8/uint16 pixels narrower than the 32-bit word it
+loads them as included: see FW_WORD_TAIL in fpiwarp_map.h), so the
+caller's array needs no slack after it. The block buffer is the job's own too: a new
+block is uploaded only when its bytes differ from the job's last one.
+
+:class:`BoundMap` is the backend's ``bind``: the map's parameter block is
+packed and checked once, and each kind of call keeps its job.
+"""
+
+import numpy as np
+
+from ...errors import SizeLimitError
+from ..lru import LruCache
+from .tiles import global_size, tiled_program
+
+#: Bytes allocated past an uploaded source image: sampling reads a pixel of
+#: up to 4 bytes as one 32-bit word, which stays inside any image of 4 bytes
+#: or more (FW_WORD_TAIL) but may run past a smaller one.
+IMAGE_SLACK = 4
+#: Outputs smaller than this are written to a kept device buffer and copied
+#: out: wrapping each new output array in a buffer (zero copy) costs about
+#: a millisecond of driver set-up per call on PoCL, more than the copy.
+ZERO_COPY_MIN_BYTES = 1 << 20
+#: Jobs kept per backend (plain calls) and per bound map, least recently used dropped.
+MAX_JOBS = 4
+
+
+def job_key(image, output_shape, order, mode, cval, antialias, kind):
+    """What a job is made for; calls with equal keys share it."""
+    return (image.shape, image.dtype.str, tuple(output_shape), int(order), mode,
+            tuple(float(v) for v in cval), bool(antialias), kind)
+
+
+class JobCache(LruCache):
+    """An LRU of :class:`ClJob` by :func:`job_key`."""
+
+    def __init__(self, size=MAX_JOBS):
+        super().__init__(size)
+
+    def get(self, backend, image, output_shape, order, mode, cval, antialias, kind):
+        key = job_key(image, output_shape, order, mode, cval, antialias, kind)
+        return self.lookup(key, lambda: ClJob(backend, image, output_shape, order, mode, cval, antialias, kind))
+
+
+class ClJob:
+    """A warp of one kind of call (see the module docstring); :meth:`run`
+    under the backend's lock."""
+
+    def __init__(self, backend, image, output_shape, order, mode, cval, antialias, kind):
+        be = self.backend = backend
+        cl = be._cl
+        h, w, c = image.shape
+        oh, ow = self.output_shape = tuple(output_shape)
+        if max(h * w, oh * ow) * c >= 2**31:
+            raise SizeLimitError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
+        self.out_shape, self.dtype = (oh, ow, c), image.dtype
+        name, options, self._local = tiled_program(be, image.dtype, c, order, mode, ow, antialias, kind)
+        program = be.kernel(name, options).program
+        self._kernel = cl.Kernel(program, name)  # its own: arguments stay set between calls
+        self._global = global_size(self._local, (oh, ow))
+        mf = cl.mem_flags
+        #: the kernel reads a large source in place (no upload): it never reads
+        #: past the last byte of a source of IMAGE_SLACK bytes or more
+        self._src_in_place = be.zero_copy and image.nbytes >= max(ZERO_COPY_MIN_BYTES, IMAGE_SLACK)
+        self._src = cl.Buffer(be.context, mf.READ_ONLY, 4 if self._src_in_place else image.nbytes + IMAGE_SLACK)
+        self._block = None
+        self._block_bytes = None
+        nbytes = oh * ow * c * image.dtype.itemsize
+        self._zero_copy = be.zero_copy and nbytes >= ZERO_COPY_MIN_BYTES
+        self._dst = None if self._zero_copy else cl.Buffer(be.context, mf.WRITE_ONLY, max(nbytes, 4))
+        cval4 = np.zeros(1, dtype=cl.cltypes.float4)
+        for i, v in enumerate(cval):
+            cval4[0][i] = v
+        self._kernel.set_args(None, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh),
+                              cval4[0])
+
+    def set_block(self, block):
+        """Point the kernel at float32 ``block``, uploaded only when its
+        bytes differ from this job's last block."""
+        data = block.tobytes()
+        if data == self._block_bytes:
+            return
+        be = self.backend
+        cl = be._cl
+        if self._block is None or self._block.size != max(block.nbytes, 4):
+            self._block = cl.Buffer(be.context, cl.mem_flags.READ_ONLY, max(block.nbytes, 4))
+            self._kernel.set_arg(0, self._block)
+        cl.enqueue_copy(be.queue, self._block, block, is_blocking=False)
+        self._block_bytes = data
+
+    def run(self, image):
+        """Warp ``image`` (of the job's shape and dtype) by the block set
+        last; returns a new array."""
+        be = self.backend
+        cl, queue = be._cl, be.queue
+        out = np.empty(self.out_shape, dtype=self.dtype)
+        if self._src_in_place:  # held until the kernel is done: an argument does not keep its buffer
+            src = cl.Buffer(be.context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=image)
+            self._kernel.set_arg(1, src)
+        else:
+            cl.enqueue_copy(queue, self._src, image, is_blocking=False)
+        if self._zero_copy:  # the kernel writes `out` itself
+            dst = cl.Buffer(be.context, cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=out)
+            self._kernel.set_arg(4, dst)
+        cl.enqueue_nd_range_kernel(queue, self._kernel, self._global, self._local)
+        if self._zero_copy:
+            mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out.shape, out.dtype)
+            event.wait()
+            del mapped
+            self._kernel.set_arg(4, None)
+        else:
+            cl.enqueue_copy(queue, out, self._dst)  # blocking: waits for the kernel and the copy
+        if self._src_in_place:
+            self._kernel.set_arg(1, self._src)  # the caller's image is not kept
+            del src
+        return out
+
+
+class BoundMap:
+    """One map bound to the opencl backend (its ``bind``): the block of its
+    inverse packed and checked once, a job per kind of call."""
+
+    def __init__(self, backend, transform):
+        self.backend = backend
+        self.block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
+        self.kind = backend.block_kind(self.block)
+        self._jobs = JobCache()
+
+    def warp_image(self, image, output_shape, *, order, mode, cval, antialias=False):
+        be = self.backend
+        with be._lock:
+            job = self._jobs.get(be, image, output_shape, order, mode, cval, antialias, self.kind)
+            job.set_block(self.block)
+            return job.run(image)

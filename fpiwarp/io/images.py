@@ -1,0 +1,184 @@
+"""Reading and writing image files without losing pixels, metadata or files.
+
+``read_image(path)`` returns an array in one of the layouts
+:func:`fpiwarp.warp_image` takes (uint8, uint16 or float32; (H, W) gray or
+(H, W, C) with C = 2 gray+alpha, 3 RGB, 4 RGBA or CMYK) and an
+:class:`ImageInfo` with what is needed to write the result back the same
+way: format, color mode and metadata (ICC profile, EXIF, resolution, PNG
+text and color chunks, JPEG quantization tables, TIFF compression).
+``write_image(path, array, info)`` writes atomically: into a temporary file
+in the output folder, then renamed over the final name, so that a crash or
+Ctrl-C leaves either no file or the complete one. An existing file is kept
+unless ``overwrite=True``.
+
+Pillow reads and writes every format it knows; 16-bit colour PNG and TIFF
+(which Pillow would reduce to 8 bits) need the ``io`` extra
+(``imagecodecs`` and ``tifffile``). Images above ``max_pixels`` (default
+:data:`MAX_PIXELS`) are refused from their header, before decoding. The
+parts live in modules of their own: ``_io_formats`` (what each format
+stores), ``_io_png``, ``_io_pillow``, ``_io_tiff`` (codecs),
+``_io_orientation`` (EXIF orientation) and ``_io_atomic`` (atomic writes);
+their errors are fpiwarp's own (``ImageError``, ``OutputExistsError``,
+``OutputIsFolderError``).
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ImageError, OutputExistsError, OutputIsFolderError
+from .atomic import TEMP_SUFFIX, atomic_write, check_output, is_temp_file
+from .formats import (
+    INSTALL_IO,
+    MAX_PIXELS,
+    ImageInfo,
+    check_writable,
+    format_for_path,
+    have_pillow,
+    is_16_bit_colour,
+    layout,
+    pillow_mode,
+)
+from .orientation import ORIENTATIONS, apply_orientation, check_choice
+from .pillow import open_checked, read_pillow, write_pillow
+from .png import PNG_SIGNATURE, encode_png, png_chunks, read_png
+from .tiff import is_tiff, read_tiff, write_tiff16
+
+__all__ = [
+    "INSTALL_IO",
+    "MAX_PIXELS",
+    "ORIENTATIONS",
+    "PNG_SIGNATURE",
+    "TEMP_SUFFIX",
+    "ImageError",
+    "ImageInfo",
+    "OutputExistsError",
+    "OutputIsFolderError",
+    "atomic_write",
+    "check_output",
+    "check_writable",
+    "format_for_path",
+    "have_pillow",
+    "is_temp_file",
+    "png_chunks",
+    "read_image",
+    "write_image",
+]
+
+
+def read_image(
+    path: str | os.PathLike, *, orientation: str = "apply", max_pixels: int = MAX_PIXELS
+) -> tuple[np.ndarray, ImageInfo]:
+    """Read an image file; return ``(array, info)``.
+
+    8- and 16-bit PNG is decoded by fpiwarp itself; the other formats by
+    Pillow (a dependency); TIFFs Pillow cannot read (16-bit colour or
+    gray+alpha) need tifffile: ``pip install 'fpiwarp[io]'``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file. Its content, not its extension, says the format.
+    orientation : {"apply", "stored"}, optional
+        "apply" (the default) turns the pixels as the EXIF Orientation tag
+        says, as viewers and OpenCV show them, and removes the tag from the
+        returned metadata; "stored" returns the pixels as stored and keeps
+        the tag (``info.orientation`` then says what a viewer would do).
+    max_pixels : int, optional
+        An image of more pixels is refused from its header, before
+        decoding; default ``fpiwarp.io.MAX_PIXELS``, Pillow's limit.
+
+    Returns
+    -------
+    array : ndarray
+        (H, W) or (H, W, C), uint8, uint16 or float32, row 0 at the top,
+        channels in RGB(A) order.
+    info : ImageInfo
+        How the file stored it (mode, metadata), for
+        :func:`write_image` to store the warped copy alike.
+
+    Raises
+    ------
+    FileNotFoundError
+        A missing file.
+    ImageError
+        A folder, a file that is not an image, is corrupt, is too large,
+        or cannot be read without loss.
+
+    Examples
+    --------
+    >>> from importlib import resources
+    >>> import fpiwarp
+    >>> with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
+    ...     image, info = fpiwarp.read_image(path)
+    >>> image.shape, image.dtype.name, info.mode
+    ((480, 640, 3), 'uint8', 'RGB')
+    """
+    check_choice(orientation)
+    path = Path(path)
+    if path.is_dir():
+        raise ImageError(f"{path}: is a folder, not an image file")
+    with open(path, "rb") as f:
+        head = f.read(len(PNG_SIGNATURE))
+    if head == PNG_SIGNATURE:
+        array, info, tag = read_png(path, path.read_bytes(), max_pixels)
+    elif is_tiff(head):
+        array, info, tag = read_tiff(path, max_pixels)
+    else:
+        with open_checked(path, max_pixels) as im:
+            array, info, tag = read_pillow(path, im)
+    return apply_orientation(array, info, tag, orientation)
+
+
+def write_image(
+    path: str | os.PathLike, array: np.ndarray, info: ImageInfo | None = None, *, overwrite: bool = False
+) -> None:
+    """Write ``array`` to ``path`` atomically, in the format its extension names.
+
+    The file is written to a temporary name in the same folder and renamed,
+    so a crash never leaves a partial file under ``path``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The output file; its extension (.png, .jpg, .tif, ...) chooses the
+        format.
+    array : array_like
+        (H, W) or (H, W, C), uint8, uint16 or float32, RGB(A) order.
+    info : ImageInfo, optional
+        From :func:`~fpiwarp.read_image`: the metadata (ICC profile, EXIF, PNG
+        chunks) and mode to keep where the format allows.
+    overwrite : bool, optional
+        Replace an existing file; default False.
+
+    Raises
+    ------
+    ImageError
+        The format cannot store the array (e.g. 16-bit colour as JPEG).
+    OutputExistsError
+        ``path`` exists and not ``overwrite``.
+    OutputIsFolderError
+        ``path`` is a folder.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> import fpiwarp
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "ramp.png"
+    >>> fpiwarp.write_image(path, np.arange(6, dtype=np.uint16).reshape(2, 3))
+    >>> fpiwarp.read_image(path)[0].tolist()
+    [[0, 1, 2], [3, 4, 5]]
+    """
+    array = np.asarray(array)
+    dtype, channels = layout(array, path)
+    fmt = check_writable(path, dtype, channels, info)
+    mode = pillow_mode(dtype, channels, info)
+    if fmt == "PNG":
+        data = encode_png(path, array, mode, info)
+        atomic_write(path, lambda f: f.write(data), overwrite=overwrite)
+    elif fmt == "TIFF" and is_16_bit_colour(dtype, channels):
+        atomic_write(path, lambda f: write_tiff16(f, array, info), overwrite=overwrite)
+    else:
+        atomic_write(path, lambda f: write_pillow(path, f, array, fmt, mode, info), overwrite=overwrite)

@@ -1,0 +1,1 @@
+"""NVIDIA Warp kernels of fpiwarp (imported by :mod:`fpiwarp.backends.nvwarp`)."""

@@ -1,0 +1,101 @@
+"""GL batches (fpiwarp.backends.gl.batch): one instanced draw per kind of
+map, split into bounded draws, column tiles and the image-by-image
+fallbacks, each equal bit for bit to the loop of GLWarper.warp_block.
+(tests/test_batch_launch.py checks warp_batch == the warp_image loop on
+"gl" over random stacks, kinds and sampling.)"""
+
+import numpy as np
+import pytest
+from support.batch_cases import make_map
+
+
+def run(warper, stack, maps, shape, **options):
+    """(batch, loop) of warper on the inverse blocks of maps."""
+    from fpiwarp.backends.gl import batch
+
+    blocks = [t.inverse.params() for t in maps]
+    got = batch.warp_batch(warper, stack, blocks, shape, **options)
+    per = blocks * len(stack) if len(blocks) == 1 else blocks
+    expected = np.stack([warper.warp_block(im, b, shape, **options) for im, b in zip(stack, per)])
+    return got, expected
+
+
+KINDS = ["fpi", "tps", "fpi", "shift", "tps", "compound"]
+
+
+def test_one_draw_per_kind_of_map(make_gl_warper, rng, monkeypatch):
+    from fpiwarp.backends.gl import batch
+
+    stack = rng.integers(0, 256, size=(6, 11, 13, 3), dtype=np.uint8)
+    maps = [make_map(kind, k, 13, 11) for k, kind in enumerate(KINDS)]
+    draws = []
+    real = batch.draw_group
+    monkeypatch.setattr(batch, "draw_group", lambda w, p, s, b, idx, *a: draws.append(idx.tolist()) or
+                        real(w, p, s, b, idx, *a))
+    got, expected = run(make_gl_warper(), stack, maps, (9, 15), order=1, mode="edge", cval=np.zeros(3))
+    np.testing.assert_array_equal(got, expected)
+    assert sorted(draws) == [[0, 2, 3], [1, 4], [5]]  # an R-linear map is an FPI's kind of program here
+    draws.clear()
+    got, expected = run(make_gl_warper(), stack, maps[:1], (9, 15), order=3, mode="reflect", cval=np.zeros(3))
+    np.testing.assert_array_equal(got, expected)
+    assert draws == [list(range(6))]  # one shared map: one draw
+    draws.clear()
+    got, expected = run(make_gl_warper(specialize=False), stack, maps, (9, 15), order=0, mode="wrap", cval=np.zeros(3))
+    np.testing.assert_array_equal(got, expected)
+    assert draws == [list(range(6))]  # a program that reads the kind at run time: one draw for all
+
+
+@pytest.mark.parametrize("shape", [(3, 20), (5, 20), (8, 8)])
+def test_bounded_draws_and_column_tiles(make_gl_warper, rng, shape):
+    """A size limit of 8 pixels: draws of 8 // rows images, outputs wider
+    than 8 in column tiles, still the loop's result."""
+    stack = rng.uniform(-1, 2, size=(5, 6, 7, 2)).astype(np.float32)
+    maps = [make_map(kind, k, 8, 8) for k, kind in enumerate(KINDS[:5])]
+    got, expected = run(make_gl_warper(max_texture_size=8), stack, maps, shape, order=1, mode="constant",
+                        cval=np.full(2, 0.5))
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_chunks_of_one_image(make_gl_warper, rng, monkeypatch):
+    from fpiwarp.backends.gl import batch
+
+    monkeypatch.setattr(batch, "CHUNK_BYTES", 1)
+    stack = rng.integers(0, 65536, size=(4, 7, 9, 4), dtype=np.uint16)
+    maps = [make_map(kind, k, 9, 7) for k, kind in enumerate(["tps", "fpi", "tps", "tps"])]
+    got, expected = run(make_gl_warper(), stack, maps, (7, 9), order=1, mode="wrap", cval=np.zeros(4), antialias=True)
+    np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("case", ["tiled source", "no storage buffers"])
+def test_image_by_image_fallbacks(make_gl_warper, rng, monkeypatch, case):
+    from fpiwarp.backends.gl import batch
+
+    w = make_gl_warper(max_texture_size=8)
+    if case == "no storage buffers":
+        monkeypatch.setattr(batch, "supports_batches", lambda ctx: False)
+    size = (11, 10) if case == "tiled source" else (6, 7)
+    stack = rng.integers(0, 256, size=(3, *size, 1), dtype=np.uint8)
+    maps = [make_map(kind, k, 8, 8) for k, kind in enumerate(["fpi", "shift", "tps"])]
+    monkeypatch.setattr(batch, "draw_group", None)  # never drawn as a batch
+    got, expected = run(w, stack, maps, (5, 6), order=1, mode="edge", cval=np.zeros(1))
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_the_callers_framebuffer_stays_bound(make_gl_warper, rng):
+    from fpiwarp.backends.gl import batch
+    from fpiwarp.backends.gl.context import bound_framebuffer
+
+    w = make_gl_warper()
+    fbo = w.ctx.simple_framebuffer((4, 4))
+    try:
+        fbo.use()
+        stack = rng.integers(0, 256, size=(2, 5, 6, 3), dtype=np.uint8)
+        run(w, stack, [make_map("fpi", 0, 8, 8)], (5, 6), order=1, mode="edge", cval=np.zeros(3))
+        assert bound_framebuffer(w.ctx).glo == fbo.glo
+        w.targets.dummy.use()  # one of the warper's own: never a cached target after the batch
+        batch.warp_batch(w, stack, [make_map("fpi", 0, 8, 8).inverse.params()], (5, 6), order=1, mode="edge",
+                         cval=np.zeros(3))
+        assert bound_framebuffer(w.ctx) is w.targets.dummy
+    finally:
+        w.ctx.detect_framebuffer(0).use()
+        fbo.release()
