@@ -14,7 +14,7 @@ class FPIWarp(torch.nn.Module):
     ``dst`` starts equal to ``src`` (the identity warp) and is a
     ``torch.nn.Parameter``; ``forward(image)`` warps by the current map,
     with gradients to ``dst`` (and the image). For registration: minimise
-    an image loss plus a penalty on :meth:`distortion`.
+    an image loss plus a penalty on ``distortion()``.
 
     Parameters
     ----------

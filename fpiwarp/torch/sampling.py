@@ -4,27 +4,27 @@ The rules are fpiwarp's (:mod:`fpiwarp.block` sampling rules, numpy
 reference ``fpiwarp.warp_image(..., backend="numpy")``): order 0 takes
 pixel floor(x + 0.5), order 1 is bilinear, order 3 Keys' cubic convolution
 (a = -0.5); border modes act on tap indices; the positions arrive already
-folded by the mode (:func:`fpiwarp.torch.positions.fold`), so every tap
-lies within :data:`MARGIN` pixels of the image.
+folded by the mode (``positions.fold``), so every tap
+lies within ``MARGIN`` (6) pixels of the image.
 
 Two samplers, one contract, tested against each other and the reference:
 
-* :func:`grid_sample_path` (CPU, orders 0 and 1): PyTorch's own
+* ``grid_sample_path`` (CPU, orders 0 and 1): PyTorch's own
   ``grid_sample``, whose CPU backward walks each image's output pixels in
   order (deterministic); ``constant`` mode samples ``image - cval`` with
   zero padding and adds cval back, ``wrap`` appends the first column and
   row. Nearest sampling receives the already rounded integer positions.
-* :class:`GatherSample` (CUDA, and order 3 everywhere): the image padded
+* ``GatherSample`` (CUDA, and order 3 everywhere): the image padded
   by MARGIN pixels per the mode, taps gathered from it. Its backward never
   accumulates floats atomically. The image gradient is a sum per source
   pixel of ``weight × grad_out`` over every (output pixel, tap) landing
   there; it is formed by a stable sort of the tap indices and a segmented
-  sum (:func:`segment_sum`, ``method="sort"``, the CUDA default) or, on
+  sum (``segment_sum``, ``method="sort"``, the CUDA default) or, on
   CPU, ``scatter_add_``, which there is one sequential loop per image and
   channel in index order. Both add each pixel's contributions in the same
   order (tap by tap, output pixels in raster order), so they agree bit for
   bit. The padding is then folded back onto the image by a fixed sequence
-  of slice additions (:func:`unpad`), not ``index_add_``.
+  of slice additions (``unpad``), not ``index_add_``.
 
 Gathering through the forward map instead (the FPI is a bijection) was
 considered and rejected: in ``edge``/``reflect``/``wrap`` modes a border
