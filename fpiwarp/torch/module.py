@@ -32,7 +32,7 @@ class FPIWarp(torch.nn.Module):
     >>> import torch, fpiwarp.torch as ft
     >>> layer = ft.FPIWarp([[0, 0], [7, 0], [7, 5], [0, 5]])
     >>> img = torch.rand(2, 3, 6, 8, dtype=torch.float64)
-    >>> bool(torch.allclose(layer(img), img)), round(float(layer.distortion()), 9)
+    >>> bool(torch.allclose(layer(img), img)), round(float(layer.distortion().detach()), 9)
     (True, 1.0)
     """
 
@@ -45,6 +45,7 @@ class FPIWarp(torch.nn.Module):
         self.output_shape, self.order, self.mode, self.cval = output_shape, order, mode, cval
 
     def forward(self, image: torch.Tensor) -> torch.Tensor:
+        """``image`` (B, C, H, W) or (C, H, W) warped by the FPI from ``src`` to the current ``dst``."""
         return warp_image(image, self.src, self.dst, self.output_shape, order=self.order, mode=self.mode,
                           cval=self.cval)
 
