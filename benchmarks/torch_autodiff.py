@@ -14,6 +14,7 @@ median over rounds, and the ratios are of those medians.
 """
 
 import argparse
+import os
 import platform
 import statistics
 import time
@@ -128,7 +129,9 @@ def report(ms, size, batch, rounds, prof):
         "# fpiwarp.torch: forward + backward on the CPU",
         "",
         f"Machine: {cpu_model()}, {torch.get_num_threads()} PyTorch threads, ISA {isa()}, "
-        f"{platform.system()} {platform.release()}, Python {platform.python_version()}.",
+        f"{platform.system()} {platform.release()}, Python {platform.python_version()}; load average "
+        f"{os.getloadavg()[0]:.1f} at the end (other work on the machine slows fpiwarp's many short passes "
+        "more than one fused grid_sample kernel: compare ratios of runs at similar load).",
         "",
         "Libraries: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".",
         "",
