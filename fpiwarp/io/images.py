@@ -15,9 +15,9 @@ Pillow reads and writes every format it knows; 16-bit colour PNG and TIFF
 (which Pillow would reduce to 8 bits) need the ``io`` extra
 (``imagecodecs`` and ``tifffile``). Images above ``max_pixels`` (default
 :data:`MAX_PIXELS`) are refused from their header, before decoding. The
-parts live in modules of their own: ``_io_formats`` (what each format
-stores), ``_io_png``, ``_io_pillow``, ``_io_tiff`` (codecs),
-``_io_orientation`` (EXIF orientation) and ``_io_atomic`` (atomic writes);
+parts live in the modules of :mod:`fpiwarp.io`: ``formats`` (what each
+format stores), ``png``, ``pillow``, ``tiff`` (codecs), ``orientation``
+(EXIF orientation) and ``atomic`` (atomic writes);
 their errors are fpiwarp's own (``ImageError``, ``OutputExistsError``,
 ``OutputIsFolderError``).
 """
