@@ -10,13 +10,17 @@ import pytest
 from fpiwarp import resources
 
 ROOT = Path(__file__).resolve().parents[1]
+#: Kernel and shader files (any depth below kernels/ and glsl/).
+SOURCE_SUFFIXES = {".cl", ".h", ".glsl", ".vert", ".frag"}
 
 
 def test_loader_reads_sources_from_the_checkout():
     for kind, folder in [("kernels", "kernels"), ("glsl", "glsl")]:
-        files = [p for p in (ROOT / folder).iterdir() if p.suffix in {".cl", ".h", ".glsl", ".vert", ".frag"}]
+        files = [p for p in (ROOT / folder).rglob("*") if p.suffix in SOURCE_SUFFIXES]
+        assert files
         for path in files:
-            assert resources.source(kind, path.name) == path.read_text(encoding="utf-8")
+            name = path.relative_to(ROOT / folder).as_posix()
+            assert resources.source(kind, name) == path.read_text(encoding="utf-8")
     with pytest.raises(ValueError, match="kind"):
         resources.source("shaders", "x.glsl")
     with pytest.raises(FileNotFoundError):
@@ -43,9 +47,9 @@ def wheel(tmp_path_factory):
 def test_wheel_ships_kernels_shaders_and_data(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     for folder, package in [("kernels", "fpiwarp/kernels"), ("glsl", "fpiwarp/glsl")]:
-        for path in (ROOT / folder).iterdir():
-            if path.suffix in {".cl", ".h", ".glsl", ".vert", ".frag", ".py"}:
-                assert f"{package}/{path.name}" in names
+        for path in (ROOT / folder).rglob("*"):
+            if path.suffix in SOURCE_SUFFIXES | {".py"}:
+                assert f"{package}/{path.relative_to(ROOT / folder).as_posix()}" in names
     for path in (ROOT / "fpiwarp" / "data").iterdir():
         if path.suffix in {".png", ".json"}:
             assert f"fpiwarp/data/{path.name}" in names
@@ -57,8 +61,9 @@ def test_loader_reads_sources_from_an_installed_wheel(wheel, tmp_path):
         "import fpiwarp, fpiwarp.resources as r, pathlib, sys;"
         "assert pathlib.Path(fpiwarp.__file__).is_relative_to(sys.argv[1]), fpiwarp.__file__;"
         "import importlib.resources as ir;"
-        "names = [p.name for k in ('kernels', 'glsl') for p in ir.files('fpiwarp.' + k).iterdir()];"
-        "print(len([n for n in names if not n.endswith(('.py', '__pycache__'))]))"
+        "walk = lambda d: [q for p in d.iterdir() for q in (walk(p) if p.is_dir() else [p])];"
+        "names = [p.name for k in ('kernels', 'glsl') for p in walk(ir.files('fpiwarp.' + k))];"
+        "print(len([n for n in names if not n.endswith(('.py', '.pyc'))]))"
     )
     result = subprocess.run(
         [sys.executable, "-c", code, str(tmp_path)],
@@ -71,8 +76,8 @@ def test_loader_reads_sources_from_an_installed_wheel(wheel, tmp_path):
     expected = sum(
         1
         for f in ("kernels", "glsl")
-        for p in (ROOT / f).iterdir()
-        if p.suffix in {".cl", ".h", ".glsl", ".vert", ".frag"}
+        for p in (ROOT / f).rglob("*")
+        if p.suffix in SOURCE_SUFFIXES
     )
     assert int(result.stdout) == expected
 

@@ -2,7 +2,7 @@
 // Per-pixel backward warp: each fragment evaluates the parameter block (the
 // INVERSE of the user's map) at its own output position and samples the
 // source there.
-#include "fpiwarp_map.glsl"
+#include "include/fpiwarp.glsl"
 
 // Output position of a fragment, in fpiwarp's pixel convention (centers at
 // integers, x = column, y = row): view.xy + view.zw * (gl_FragCoord.xy - 0.5).

@@ -17,7 +17,7 @@
 #ifdef FPW_BATCH
 #define FPW_BATCH_VARYING flat out
 #define FPW_BATCH_BLOCK (gl_InstanceID * fpw_batch_step)
-#include "batch.glsl"
+#include "include/batch.glsl"
 uniform int fpw_batch_rows;
 uniform int fpw_batch_count;
 uniform int fpw_batch_step;
@@ -30,7 +30,7 @@ layout(std140) uniform FpiwarpParams {
 #endif
 flat out vec4 fpw_hot[FPW_HOT_ROWS * FPW_HOT_STAGES];
 #endif
-#include "per_draw.glsl"
+#include "include/per_draw.glsl"
 FPW_FORWARD_PER_DRAW_DECLS
 
 void main() {
