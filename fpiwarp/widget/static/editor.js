@@ -242,6 +242,11 @@ export function createEditor(root, transport) {
     flush();
   }
 
+  // The next state is taken as a first one (overlays, view).
+  ed.restart = () => {
+    chain = chain.then(() => { ed.state = null; ed.overlays.clear(); ed.lastView = null; });
+  };
+
   ed.setState = (state) => {
     chain = chain.then(() => apply(state)).catch((err) => fail(err));
     return chain;

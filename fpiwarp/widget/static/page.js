@@ -33,9 +33,12 @@ const transport = {
 };
 
 editor = createEditor(document.getElementById("fpiwarp"), transport);
-// Reload the state from the server (after a change made on the Python side).
+// Reload the state from the server (a session replaced on the Python
+// side): its overlays and view are taken as on a first load.
 editor.reload = async () => {
   const r = await check(await fetch("api/state", { headers }));
-  return editor.setState(await r.json());
+  const state = await r.json();
+  editor.restart();
+  return editor.setState(state);
 };
 editor.reload();
