@@ -338,7 +338,8 @@ def build_parser():
         "and OpenGL 3.3; pip install moderngl-window). Keys: H handles, O outline, C checkerboard, "
         "D distortion heat map, N overlays off/on, M mesh/per-pixel drawing, click an edge to constrain it "
         "(X clears), F fit, R reset, S save the spec, E export the warped image, Q quit. With --screenshot, render one "
-        "frame offscreen at the image's size (no display needed), write it and exit.",
+        "frame offscreen at the image's size (no display needed), write it and exit. With --web, the same editor in "
+        "the browser (WebGL2) from a local server; --web --screenshot renders its frame in headless Chromium.",
     )
     p.add_argument("input", help="image file to show (never modified)")
     p.add_argument("--src", metavar="X1,Y1,...,X4,Y4", help="four source corners (default the image's)")

@@ -8,9 +8,9 @@ The folders say who uses a file:
   ``map.glsl`` (the map), ``per_draw.glsl`` (per-draw values),
   ``sample.glsl`` (the sampler), ``antialias.glsl``, ``output.glsl`` and
   ``pack.glsl`` (the fragment output), ``batch.glsl`` (batches);
-* ``backend/``  the passes of the "gl" backend (:mod:`fpiwarp.backends.gl`);
-* ``viewer/``   the preview's (:mod:`fpiwarp.viewer`, and the browser's
-  WebGL2 page of :mod:`fpiwarp.widget`).
+* ``backend/``  the passes of the "gl" backend (``fpiwarp.backends.gl``);
+* ``viewer/``   the preview's (``fpiwarp.viewer``, and the browser's
+  WebGL2 page of ``fpiwarp.widget``).
 
 Each file name is written once, below; Python code names files by these
 constants. :func:`assemble` expands ``#include "path"`` (paths from this

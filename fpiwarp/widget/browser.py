@@ -23,7 +23,12 @@ FLAGS = (
     "--headless=new", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
     "--disable-dev-shm-usage", "--no-first-run", "--no-default-browser-check", "--disable-extensions",
     "--disable-background-networking", "--disable-component-update", "--disable-sync",
-    "--disable-features=Translate,OptimizationHints,MediaRouter", "--hide-scrollbars", "--mute-audio",
+    # no model or hint downloads, no on-device model service
+    "--disable-features=Translate,MediaRouter,OptimizationHints,OptimizationHintsFetching,"
+    "OptimizationGuideModelDownloading,OptimizationTargetPrediction,OnDeviceModelService,AIPromptAPI,"
+    "AISummarizationAPI,AIWriterAPI,AIRewriterAPI",
+    "--disable-domain-reliability", "--disable-client-side-phishing-detection", "--metrics-recording-only",
+    "--hide-scrollbars", "--mute-audio",
 )
 INSTALL_HINT = "apt-get install chromium chromium-driver; pip install selenium"
 

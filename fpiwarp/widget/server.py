@@ -40,9 +40,9 @@ def static_text(name):
 class PageServer:
     """Serve ``session`` on 127.0.0.1 (``port`` 0: a free one).
 
-    Use :attr:`url` (with the token) to open the page; :meth:`start` serves
-    from a thread, :meth:`serve_forever` from the caller's; :meth:`close`
-    stops. Calls into the session are serialised by :attr:`lock`.
+    Use ``url`` (with the token) to open the page; ``start`` serves from a
+    thread, ``serve_forever`` from the caller's; ``close`` stops. Calls into
+    the session are serialised by ``lock``.
     """
 
     def __init__(self, session, *, port=0, token=None):

@@ -180,8 +180,8 @@ class PageView:
 
 class Session:
     """The state of one page: an image, the map being edited and the
-    settings of the frame; :meth:`handle` takes the page's messages,
-    :meth:`state` and :meth:`image_payload` say what to draw.
+    settings of the frame; ``handle`` takes the page's messages,
+    ``state`` and ``image_payload`` say what to draw.
 
     Parameters
     ----------
@@ -192,11 +192,11 @@ class Session:
     order, mode, cval
         Sampling as in :func:`fpiwarp.warp_image`.
     overlays : sequence of str
-        Overlays shown first (:data:`OVERLAYS`).
+        Overlays shown first (of ``OVERLAYS``).
     info, name, spec_path, export_path
         As for the desktop viewer (the S and E keys' files).
     antialias, backend
-        How :meth:`export` warps (the Python backends).
+        How the E key exports (the Python backends).
     background : RGBA 0..1, optional
         What shows where the source is not (images without alpha); default
         cval: the exact warped picture.

@@ -7,7 +7,7 @@
 // loads a uniform again for every pixel, a flat varying once per triangle,
 // which makes a 4K warp about twice as fast there; GPUs do not care.
 //   FPW_HOT_STAGES: rows FPW_ROW_PRE .. FPW_ROW_PRE + FPW_HOT_ROWS - 1 of the
-//     first FPW_HOT_STAGES stages of the block (fpw_row in fpiwarp_map.glsl);
+//     first FPW_HOT_STAGES stages of the block (fpw_row in include/block.glsl);
 //   FPW_FLAT_PER_DRAW: the per-draw values of the fragment program (the
 //     list in per_draw.glsl), declared here as uniforms under their names
 //     and copied into the flat members of the block FpwPerDraw.

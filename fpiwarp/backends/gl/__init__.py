@@ -1,6 +1,6 @@
 """The "gl" backend: GLSL shaders through moderngl, headless through EGL.
 
-Three paths share one shader include (``glsl/fpiwarp_map.glsl``), which
+Three paths share one shader include (``glsl/include/fpiwarp.glsl``), which
 mirrors :func:`fpiwarp.params.evaluate` and :mod:`fpiwarp._sampling`:
 
 * ``map_points``: a vertex shader evaluates the parameter block per point,
@@ -14,7 +14,7 @@ mirrors :func:`fpiwarp.params.evaluate` and :mod:`fpiwarp._sampling`:
   ``hardware_filter=True`` lets the texture unit filter instead (GL
   quantizes the weights). What makes it fast on Mesa's llvmpipe, which
   runs it on the CPU: per-draw values reach the fragment stage as flat
-  varyings rather than uniforms (listed once, in ``glsl/per_draw.glsl``), order 1 reads one textureGather per
+  varyings rather than uniforms (listed once, in ``glsl/include/per_draw.glsl``), order 1 reads one textureGather per
   channel instead of a texelFetch per tap, and 3-channel pictures come
   back as packed RGB32UI texels;
 * :func:`warp_image_mesh`: the paper's own way, a triangulated grid of the

@@ -208,7 +208,7 @@ export function createEditor(root, transport) {
     const isFloat = meta.dtype !== "uint8";
     gl.texImage2D(gl.TEXTURE_2D, 0, isFloat ? gl.RGBA32F : gl.RGBA8, meta.width, meta.height, 0, gl.RGBA,
       isFloat ? gl.FLOAT : gl.UNSIGNED_BYTE, texels);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST); // texelFetch: no mipmaps
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST); // read texel by texel: no mipmaps
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
@@ -240,6 +240,7 @@ export function createEditor(root, transport) {
     if (ed.drag === null) ed.dragXY = null;
     draw();
     flush();
+    settle();
   }
 
   // The next state is taken as a first one (overlays, view).
@@ -278,20 +279,37 @@ export function createEditor(root, transport) {
       ed.acked = ed.sent;
       status.textContent = `error: ${err.message || err}`;
       flush();
+      settle();
     });
   }
   ed.post = post;
 
   // Resolves once every message sent was answered and drawn.
+  const waiters = [];
+  function settle() {
+    chain.then(() => {
+      if (ed.state && ed.queue.length === 0 && ed.sent <= ed.acked) {
+        waiters.splice(0).forEach((resolve) => resolve(ed.frames));
+      }
+    });
+  }
   ed.whenIdle = () => new Promise((resolve) => {
-    const check = () => {
-      chain.then(() => {
-        if (ed.state && ed.queue.length === 0 && ed.sent <= ed.acked) resolve(ed.frames);
-        else setTimeout(check, 5);
-      });
-    };
-    check();
+    waiters.push(resolve);
+    settle();
   });
+
+  // Waits for the GPU (a one-pixel read): frame timing in benchmarks.
+  ed.finish = () => {
+    const px = new Uint8Array(4);
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    return px[0];
+  };
+  // Draw the view at a fixed canvas size (null: follow the page).
+  ed.setFixedSize = (size, view) => {
+    ed.fixedSize = size;
+    if (view) ed.view = view.slice();
+    draw();
+  };
 
   // ---- coordinates: output pixels <-> canvas pixels (GL's window, y up)
   function canvasSize() {
