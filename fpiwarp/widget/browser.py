@@ -40,6 +40,9 @@ def executables():
     if browser is None or driver is None:
         missing = "chromium" if browser is None else "chromedriver"
         raise BackendUnavailableError(f"no {missing} on PATH: the headless page needs both ({INSTALL_HINT})")
+    for path in (browser, driver):  # a bad path must never send Selenium looking for a download
+        if not (os.path.isfile(path) and os.access(path, os.X_OK)):
+            raise BackendUnavailableError(f"{path} is not an executable file ({INSTALL_HINT})")
     return browser, driver
 
 

@@ -354,8 +354,11 @@ class Session:
             if limit < 64:
                 raise ArgumentError(f"texture_limit: {limit} is not a usable texture size")
             if limit != self.view.texture_limit:
+                before = display_size(self.image.shape, self.view.texture_limit)
                 self.view.texture_limit = limit
-                self._display = None
+                if display_size(self.image.shape, limit) != before:  # another texture: the page reloads it
+                    self._display = None
+                    self.image_version = next(_IMAGE_VERSIONS)
         else:
             raise ArgumentError(f"unknown page message type {kind!r}")
         if "seq" in msg:

@@ -9,8 +9,6 @@ import urllib.request
 
 import numpy as np
 import pytest
-from selenium.webdriver.common.action_chains import ActionChains
-from selenium.webdriver.common.by import By
 
 import fpiwarp
 from fpiwarp import FPI, LocalDeformation
@@ -37,6 +35,9 @@ def _js(driver, script, *args):
 
 def _at(driver, css_xy):
     """An action chain with the pointer at canvas CSS pixel css_xy."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
     canvas = driver.find_element(By.CSS_SELECTOR, ".fpw-overlay")
     w, h = canvas.size["width"], canvas.size["height"]
     return ActionChains(driver, duration=10).move_to_element_with_offset(
@@ -93,6 +94,8 @@ def test_clicking_two_edges_builds_the_python_local_deformation(page, session):
 
 
 def test_s_and_e_save_the_spec_and_export_full_size(page, session, tmp_path):
+    from selenium.webdriver.common.by import By
+
     driver = page[0]
     (tmp_path / "edit.png").write_bytes(b"not ours")  # a file the session did not write is never replaced
     root = driver.find_element(By.CSS_SELECTOR, ".fpw-editor")
@@ -109,6 +112,8 @@ def test_s_and_e_save_the_spec_and_export_full_size(page, session, tmp_path):
 
 
 def test_overlay_toggles_follow_the_desktop_keys(page, session):
+    from selenium.webdriver.common.by import By
+
     driver = page[0]
     root = driver.find_element(By.CSS_SELECTOR, ".fpw-editor")
     assert sorted(_js(driver, "return [...ed.overlays];")) == ["handles", "outline"]
@@ -139,3 +144,28 @@ def test_server_refuses_requests_without_its_token(page):
     with pytest.raises(urllib.error.HTTPError) as err:
         urllib.request.urlopen(bad, timeout=10)
     assert err.value.code == 400 and "unknown page message" in json.load(err.value)["error"]
+
+
+def test_image_above_the_texture_limit_is_shown_downscaled(page):
+    """Above the page's texture limit the display texture is downscaled, and
+    the block the page draws composes the map with full-size-to-texture
+    pixels: the frame is the warp of the downscaled picture, at full size."""
+    from fpiwarp import Compound
+    from fpiwarp.widget.session import display_image, texture_scale
+
+    driver, _, show = page
+    y, x = np.mgrid[0:200, 0:300]
+    img = np.stack([x * 255 // 300, y * 255 // 200, (x // 7 + y // 5) % 2 * 255], -1).astype(np.uint8)
+    f = FPI([[0, 0], [299, 0], [299, 199], [0, 199]], [[10, 5], [290, -8], [305, 210], [-6, 190]])
+    s = Session(img, f, overlays=())
+    show(s)
+    driver.execute_async_script("window.fpiwarpEditor.post({type: 'texture_limit', value: 150});"
+                                "window.fpiwarpEditor.whenIdle().then(arguments[arguments.length - 1]);")
+    assert s.state()["image"]["display"] == [150, 100]
+    frame = browser.capture(driver)[:, :, :3]
+    small = display_image(img, (150, 100))
+    scale = texture_scale(img.shape, (150, 100))
+    ref = fpiwarp.warp_image(small, Compound([scale.inverse, f]), img.shape[:2], backend="numpy")
+    assert frame.shape == img.shape
+    assert np.mean(np.abs(frame.astype(int) - ref).max(-1) <= 2) >= 0.99
+    assert not browser.console_problems(driver)

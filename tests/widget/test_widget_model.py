@@ -15,8 +15,6 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import numpy as np
 import pytest
-from selenium.webdriver.common.action_chains import ActionChains
-from selenium.webdriver.common.by import By
 
 import fpiwarp
 from fpiwarp import FPI, ArgumentError, LocalDeformation
@@ -67,11 +65,11 @@ def test_image_replaced_and_exported_at_full_size(tmp_path):
     assert w._image_meta["version"] != version and w.dst == DST
     w.image = np.zeros((30, 40), np.uint16)  # another size: the handles start on its corners
     assert w.dst == [[0, 0], [39, 0], [39, 29], [0, 29]] and w._image_meta["dtype"] == "uint16"
-    big = (np.random.default_rng(1).random((300, 5000, 3)) * 255).astype(np.uint8)
-    w = WarpWidget(big, [[0, 0], [4999, 0], [4999, 299], [0, 299]], [[10, 5], [4990, -20], [5010, 310], [-8, 290]])
+    big = (np.random.default_rng(1).random((120, 2600, 3)) * 255).astype(np.uint8)
+    w = WarpWidget(big, [[0, 0], [2599, 0], [2599, 119], [0, 119]], [[10, 5], [2590, -20], [2610, 130], [-8, 110]])
     w._on_page_message(w, {"type": "texture_limit", "value": 2048}, [])
-    assert (w._image_meta["width"], w._image_meta["height"]) == (2048, 123)  # shown downscaled
-    assert len(w._image) == 2048 * 123 * 3
+    assert (w._image_meta["width"], w._image_meta["height"]) == (2048, 95)  # shown downscaled
+    assert len(w._image) == 2048 * 95 * 3
     path = w.export(tmp_path / "full.png", antialias=True)
     out, _ = fpiwarp.read_image(path)
     assert out.shape == big.shape  # exported at full size
@@ -153,6 +151,9 @@ def bridged(chromium):
 
 
 def test_widget_front_end_drag_changes_dst_and_k(bridged):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
     driver, w = bridged
     k0 = w.K
     start = driver.execute_script("return window.fpiwarpEditor.toScreen(window.fpiwarpEditor.state.dst[0]);")
