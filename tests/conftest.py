@@ -16,29 +16,13 @@ import os
 import numpy as np
 import pytest
 from hypothesis import settings
+from support.requirements import use_backend
 
 import fpiwarp
-from fpiwarp.backends import backend_status
 
 settings.register_profile("dev", deadline=None)
 settings.register_profile("ci", deadline=None, derandomize=True, database=None, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
-
-
-def required_backends():
-    value = os.environ.get("FPIWARP_REQUIRE_BACKENDS", "")
-    return {name.strip() for name in value.split(",") if name.strip()}
-
-
-def use_backend(name):
-    """Return the backend name if it can run; else skip (or fail if required)."""
-    reason = backend_status()[name]
-    if reason is not None:
-        message = f"backend {name!r} unavailable: {reason}"
-        if name in required_backends():
-            pytest.fail(message + " (required by FPIWARP_REQUIRE_BACKENDS)")
-        pytest.skip(message)
-    return name
 
 
 @pytest.fixture(params=["numpy", "opencl", "warp", "gl"])

@@ -27,7 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-import fpiwarp
+# Record the tree this script lies in, not whichever checkout an editable
+# install points to (a git worktree would otherwise record another tree).
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import fpiwarp  # noqa: E402
 
 ORDERS = (0, 1, 3)
 MODES = ("constant", "edge", "reflect", "wrap")

@@ -191,6 +191,8 @@ def cmd_preview(args):
     image, info = read_image(args.input, orientation=args.orientation)
     transform = _preview_transform(args, image)
     overlays = () if args.no_overlay else ("handles", "outline")
+    if args.web:
+        return _preview_web(args, image, info, transform, overlays)
     if args.screenshot is not None:
         from ..viewer import render_image
 
@@ -209,6 +211,43 @@ def cmd_preview(args):
     editor = run(image, transform, info=info, name=name, export_path=f"{name}-warped{Path(args.input).suffix}",
                  overlays=overlays, order=args.order)
     for path in editor.saved:
+        print(f"wrote {path}")
+    return 0
+
+
+def _preview_web(args, image, info, transform, overlays):
+    """--web: the editor page from a local server, in the system browser;
+    with --screenshot one frame from headless Chromium."""
+    from ..widget.session import Session
+
+    name = Path(args.input).stem
+    session = Session(image, transform, order=args.order, overlays=overlays, info=info, name=name,
+                      export_path=f"{name}-warped{Path(args.input).suffix}",
+                      background=None if args.screenshot else (0.18, 0.18, 0.2, 1.0))
+    if args.screenshot is not None:
+        from ..widget.browser import screenshot
+
+        frame = screenshot(session, overlays=bool(overlays))
+        keep = info if frame.shape[2:] == image.shape[2:] else None
+        check_writable(args.screenshot, frame.dtype, frame.shape[2], keep)
+        write_image(args.screenshot, frame, keep, overwrite=args.overwrite)
+        print(f"wrote {args.screenshot}")
+        return 0
+    import webbrowser
+
+    from ..widget.server import PageServer
+
+    server = PageServer(session, port=args.port)
+    print(f"fpiwarp preview: {server.url}  (Ctrl-C stops)", flush=True)
+    if not args.no_browser:
+        webbrowser.open(server.url)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.close()
+    for path in session.editor.saved:
         print(f"wrote {path}")
     return 0
 
@@ -299,7 +338,8 @@ def build_parser():
         "and OpenGL 3.3; pip install moderngl-window). Keys: H handles, O outline, C checkerboard, "
         "D distortion heat map, N overlays off/on, M mesh/per-pixel drawing, click an edge to constrain it "
         "(X clears), F fit, R reset, S save the spec, E export the warped image, Q quit. With --screenshot, render one "
-        "frame offscreen at the image's size (no display needed), write it and exit.",
+        "frame offscreen at the image's size (no display needed), write it and exit. With --web, the same editor in "
+        "the browser (WebGL2) from a local server; --web --screenshot renders its frame in headless Chromium.",
     )
     p.add_argument("input", help="image file to show (never modified)")
     p.add_argument("--src", metavar="X1,Y1,...,X4,Y4", help="four source corners (default the image's)")
@@ -310,6 +350,11 @@ def build_parser():
     p.add_argument("--no-overlay", action="store_true",
                    help="no handles or outline: the screenshot is exactly the warped image")
     p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
+    p.add_argument("--web", action="store_true",
+                   help="the editor in the browser (WebGL2): served on 127.0.0.1 with a token in the URL and "
+                   "opened in the system browser; with --screenshot rendered in headless Chromium")
+    p.add_argument("--port", type=int, default=0, help="--web: the port (default a free one)")
+    p.add_argument("--no-browser", action="store_true", help="--web: print the URL, open no browser")
     p.add_argument("--overwrite", action="store_true", help="replace the screenshot if it exists")
     _add_orientation_option(p)
     p.set_defaults(func=cmd_preview)

@@ -1,12 +1,13 @@
 """Overlays of the preview renderer: the handles (target points) and the
 outline (the images of the source quad's edges), drawn as flat-coloured
 triangles whose corners are computed on the host in window pixels, so
-their sizes do not change with the zoom (glsl/overlay.vert, overlay.frag).
+their sizes do not change with the zoom (glsl/viewer/overlay.vert, overlay.frag).
 """
 
 import moderngl
 import numpy as np
 
+from .. import glsl
 from ..backends.gl import ProgramKey
 
 #: Overlay colours (RGBA, 0..1).
@@ -16,7 +17,7 @@ EDGE_COLOR = (0.2, 0.9, 1.0, 0.9)
 CONSTRAINED_COLOR = (1.0, 0.55, 0.0, 1.0)
 RING_COLOR = (0.0, 0.0, 0.0, 0.8)
 #: The overlay program.
-OVERLAY_PROGRAM = ProgramKey("overlay.vert", "overlay.frag", samples=False)
+OVERLAY_PROGRAM = ProgramKey(glsl.OVERLAY_VERT, glsl.OVERLAY_FRAG, samples=False)
 
 
 def edge_curves(step, samples=48):

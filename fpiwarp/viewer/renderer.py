@@ -53,6 +53,7 @@ that made it: call the renderer from that thread, with the context current.
 import moderngl
 import numpy as np
 
+from .. import glsl
 from ..backends.capabilities import GL
 from ..backends.gl import (
     FULLSCREEN,
@@ -342,12 +343,12 @@ class Renderer:
         cval4 = display_rgba(np.broadcast_to(np.asarray(self._cval, np.float64), (c,)) / self._scale)
         bg = cval4 if self.background is None else np.resize(np.asarray(self.background, np.float64), 4)
         if method == "mesh":
-            prog = self.warper.program(ProgramKey("mesh.vert", "preview_mesh.frag", **shading))
+            prog = self.warper.program(ProgramKey(glsl.MESH_VERT, glsl.PREVIEW_MESH_FRAG, **shading))
             # mesh.vert maps to the viewport from its corner: view of (0, 0, w, h)
             set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params((0, 0) + viewport[2:], y_down)))
             set_uniform(prog, "fpw_viewport", (float(viewport[2]), float(viewport[3])))
         else:
-            prog = self.warper.program(ProgramKey(FULLSCREEN, "preview.frag", **shading))
+            prog = self.warper.program(ProgramKey(FULLSCREEN, glsl.PREVIEW_FRAG, **shading))
             set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params(viewport, y_down)))
         set_uniform(prog, "fpw_src_size", (w, h))
         set_uniform(prog, "fpw_cval", tuple(float(v) for v in cval4) if c in (2, 4) else (0.0, 0.0, 0.0, 0.0))
@@ -372,7 +373,8 @@ class Renderer:
         the culling and clipping of GLWarper's mesh path: triangles that
         come out flipped straddle the pole, vertices at the pole clip."""
         ctx = self.ctx
-        fill = self.warper.program(ProgramKey(FULLSCREEN, "warp.frag", order=self.order, mode=self.mode, output="fill"))
+        fill = self.warper.program(ProgramKey(FULLSCREEN, glsl.WARP_FRAG, order=self.order, mode=self.mode,
+                                              output="fill"))
         set_uniform(fill, "fpw_cval", tuple(float(v) for v in outside))
         set_uniform(fill, "fpw_out_scale", 1.0)
         self.warper.fullscreen_vao(fill).render(moderngl.TRIANGLES, vertices=3)

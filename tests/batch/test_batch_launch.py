@@ -22,7 +22,7 @@ BATCHING = ["numpy", "opencl", "warp", "gl"]
 @settings(max_examples=25, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(case=batches())
 def test_batch_equals_the_loop_bit_for_bit(backend, case):
-    from conftest import use_backend
+    from support.requirements import use_backend
 
     use_backend(backend)
     stack, transforms, options = case
@@ -113,7 +113,7 @@ def test_warp_groups_maps_by_kind():
 @given(n=st.integers(1, 4), shape=st.sampled_from([(0,), (1,), (7,), (3, 5)]), one=st.booleans(),
        kinds=st.lists(st.sampled_from(KINDS), min_size=4, max_size=4), seed=st.integers(0, 2**32 - 1))
 def test_map_points_batch_equals_the_loop(backend, n, shape, one, kinds, seed):
-    from conftest import use_backend
+    from support.requirements import use_backend
 
     use_backend(backend)
     pts = np.random.default_rng(seed).uniform(-20, 40, size=(n, *shape, 2))

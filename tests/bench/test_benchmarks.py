@@ -8,10 +8,10 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import required_backends
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from support import ROOT
+from support.requirements import required_backends
 from support.strategies import quads
 
 sys.path.insert(0, str(ROOT))  # benchmarks/ lives beside the package, not in it

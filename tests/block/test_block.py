@@ -174,16 +174,21 @@ def test_generated_constants_are_the_contract():
 def _kernel_texts():
     """(name, text) of every OpenCL and GLSL source file that ships."""
     for kind, package in PACKAGES.items():
-        root = pathlib.Path(str(resources.files(package)))
-        for path in sorted(root.rglob("*")):
-            if path.name.endswith((".h", ".cl", ".glsl", ".vert", ".frag")):
-                name = path.relative_to(root).as_posix()
-                yield f"{kind}/{name}", source(kind, name)
+        yield from ((f"{kind}/{name}", source(kind, name)) for name in _source_names(resources.files(package)))
+
+
+def _source_names(folder, prefix=""):
+    """Paths (from the package) of the kernel and shader files under ``folder``."""
+    for entry in sorted(folder.iterdir(), key=lambda e: e.name):
+        if entry.is_dir() and entry.name != "__pycache__":
+            yield from _source_names(entry, f"{prefix}{entry.name}/")
+        elif entry.name.endswith((".h", ".cl", ".glsl", ".vert", ".frag")):
+            yield prefix + entry.name
 
 
 def test_no_kernel_source_hand_defines_a_contract_constant():
     texts = dict(_kernel_texts())
-    assert "kernels/opencl/fpiwarp_map.h" in texts and "glsl/fpiwarp_map.glsl" in texts
+    assert "kernels/opencl/fpiwarp_map.h" in texts and "glsl/include/map.glsl" in texts
     contract = "|".join(codegen.KERNEL_CONSTANTS)
     hand = re.compile(rf"^\s*#\s*define\s+(?:FW_|FPW_)({contract})\b", re.M)
     for name, text in texts.items():
@@ -217,7 +222,7 @@ def test_every_core_has_its_own_branch_in_every_kernel():
     """No core is an implicit `else`: each kernel names every core of the
     contract and gives anything else NaN ("outside")."""
     for kind, name, prefix in (("kernels", "opencl/fpiwarp_map.h", "FW_"), ("kernels", "nvwarp/map.py", ""),
-                               ("glsl", "fpiwarp_map.glsl", "FPW_")):
+                               ("glsl", "include/map.glsl", "FPW_"), ("glsl", "include/antialias.glsl", "FPW_")):
         text = source(kind, name)
         for core in ("CORE_AFFINE", "CORE_TPS", "CORE_TPS_INVERSE", "CORE_TPS_PAIRS", "CORE_TPS_PAIRS_INVERSE"):
             assert re.search(rf"core == {prefix}{core}\b", text), f"{name}: no branch for {core}"

@@ -8,7 +8,7 @@ import doctest
 import importlib
 
 import pytest
-from conftest import use_backend
+from support.requirements import use_backend
 
 MODULES = [
     "maps.fpi", "maps.rlinear", "maps.mobius", "maps.thin_plate_spline", "maps.constrained", "maps.local",

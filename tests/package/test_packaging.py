@@ -10,10 +10,13 @@ from support import ROOT
 
 from fpiwarp import resources
 
+#: Kernel and shader files (any depth below kernels/ and glsl/).
+SOURCE_SUFFIXES = {".cl", ".h", ".glsl", ".vert", ".frag"}
+
 
 def test_loader_reads_sources_from_the_checkout():
     for kind, folder in [("kernels", "kernels"), ("glsl", "glsl")]:
-        files = [p for p in (ROOT / folder).rglob("*") if p.suffix in {".cl", ".h", ".glsl", ".vert", ".frag"}]
+        files = [p for p in (ROOT / folder).rglob("*") if p.suffix in SOURCE_SUFFIXES]
         assert files
         for path in files:
             name = path.relative_to(ROOT / folder).as_posix()
@@ -45,7 +48,7 @@ def test_wheel_ships_kernels_shaders_and_data(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     for folder, package in [("kernels", "fpiwarp/kernels"), ("glsl", "fpiwarp/glsl")]:
         for path in (ROOT / folder).rglob("*"):
-            if path.suffix in {".cl", ".h", ".glsl", ".vert", ".frag", ".py"} and "__pycache__" not in path.parts:
+            if path.suffix in SOURCE_SUFFIXES | {".py"} and "__pycache__" not in path.parts:
                 assert f"{package}/{path.relative_to(ROOT / folder).as_posix()}" in names
     for path in (ROOT / "fpiwarp" / "data").iterdir():
         if path.suffix in {".png", ".json"}:
@@ -75,7 +78,7 @@ def test_loader_reads_sources_from_an_installed_wheel(wheel, tmp_path):
         1
         for f in ("kernels", "glsl")
         for p in (ROOT / f).rglob("*")
-        if p.suffix in {".cl", ".h", ".glsl", ".vert", ".frag"}
+        if p.suffix in SOURCE_SUFFIXES
     )
     assert int(result.stdout) == expected
 

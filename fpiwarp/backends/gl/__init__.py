@@ -1,6 +1,6 @@
 """The "gl" backend: GLSL shaders through moderngl, headless through EGL.
 
-Three paths share one shader include (``glsl/fpiwarp_map.glsl``), which
+Three paths share one shader include (``glsl/include/fpiwarp.glsl``), which
 mirrors :func:`fpiwarp.block.evaluate` and :mod:`fpiwarp.sampling.sampler`:
 
 * ``map_points``: a vertex shader evaluates the parameter block per point,
@@ -14,7 +14,7 @@ mirrors :func:`fpiwarp.block.evaluate` and :mod:`fpiwarp.sampling.sampler`:
   ``hardware_filter=True`` lets the texture unit filter instead (GL
   quantizes the weights). What makes it fast on Mesa's llvmpipe, which
   runs it on the CPU: per-draw values reach the fragment stage as flat
-  varyings rather than uniforms (listed once, in ``glsl/per_draw.glsl``), order 1 reads one textureGather per
+  varyings rather than uniforms (listed once, in ``glsl/include/per_draw.glsl``), order 1 reads one textureGather per
   channel instead of a texelFetch per tap, and 3-channel pictures come
   back as packed RGB32UI texels;
 * :func:`warp_image_mesh`: the paper's own way, a triangulated grid of the
@@ -67,6 +67,7 @@ from .programs import (
     map_kind,
     set_uniform,
     shader_source,
+    stage_kinds,
     stages_define,
 )
 from .readback import renders_rgb32ui
@@ -78,6 +79,6 @@ __all__ = [
     "bound_framebuffer", "check_thread", "claim_shared_context",
     "create_context", "draw_culled_mesh", "flat_value_sources", "fragment_defines",
     "grid_mesh", "map_kind", "owner_thread", "probe", "release_shared_context",
-    "renders_rgb32ui", "set_uniform", "shader_source", "shared_context", "stages_define",
+    "renders_rgb32ui", "set_uniform", "shader_source", "shared_context", "stage_kinds", "stages_define",
     "warp_image_mesh",
 ]

@@ -22,6 +22,7 @@ import weakref
 import moderngl
 import numpy as np
 
+from ... import glsl
 from ...arrays.kinds import array_info
 from ...errors import ArgumentError, DeviceMismatchError
 
@@ -93,7 +94,7 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
     stages = warper.set_map(transform.inverse.params())
     gather = warper.gather and order == 1 and mode in ("constant", "edge", "wrap") and not antialias
     flags = ("FPW_ANTIALIAS",) if antialias else ()
-    key = ProgramKey(FULLSCREEN, "warp.frag", stages=stages, order=order, mode=mode, source=source,
+    key = ProgramKey(FULLSCREEN, glsl.WARP_FRAG, stages=stages, order=order, mode=mode, source=source,
                      gather_channels=c if gather else 0, output=output,
                      flags=flags + (("FPW_OUT_ROUNDED",) if scale != 1.0 else ()))
     prog = warper.program(key)

@@ -6,7 +6,7 @@ parameter blocks into a shader storage buffer, one block per
 instanced draw of the warp program compiled with ``FPW_BATCH`` renders
 all N outputs into one tall framebuffer: instance k covers rows
 [k * rows, (k + 1) * rows), samples layer k and evaluates block k (or
-block 0 for one map shared by all; glsl/batch.glsl). The per-pixel code
+block 0 for one map shared by all; glsl/include/batch.glsl). The per-pixel code
 is the single image's, line for line (only the accessor of the block and
 the texture coordinates differ), so the batch equals the loop of
 :meth:`GLWarper.warp_block` bit for bit, and the atlas reads back as

@@ -15,6 +15,7 @@ without storage buffers map the sets one after the other.
 import moderngl
 import numpy as np
 
+from ... import glsl
 from ...block.many import BlockStack
 from .batch import BATCH_BINDING, kind_groups, supports_batches
 from .context import bound_framebuffer
@@ -48,7 +49,7 @@ def map_points_batch(warper, blocks, points):
     try:
         per = sets_per_pass(warper, p)
         for stages, _, idx, own in kind_groups(stack, n, warper.specialize):
-            prog = warper.program(ProgramKey("map_points.vert", stages=stages, varyings=("fpw_mapped",),
+            prog = warper.program(ProgramKey(glsl.MAP_POINTS_VERT, stages=stages, varyings=("fpw_mapped",),
                                              flags=("FPW_BATCH",)))
             storage = prog.get("FpiwarpBatch", None)
             if storage is not None:

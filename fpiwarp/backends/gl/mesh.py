@@ -1,5 +1,5 @@
 """The mesh path: a triangulated grid of the source moved per vertex by
-the forward map (glsl/mesh.vert) and rasterized, the paper's own way.
+the forward map (glsl/backend/mesh.vert) and rasterized, the paper's own way.
 
 Shared by the backend's :meth:`GLWarper.warp_image_mesh` and the preview
 renderer: the default grid, the check of a caller's mesh, and the draw
@@ -79,7 +79,7 @@ def draw_culled_mesh(ctx, vao, front_face="ccw"):
     in window coordinates (``front_face="ccw"``; a y-up view mirrors them:
     "cw"). Flipped triangles straddle the pole (or fold): cull them.
     Vertices sent to the pole clip their triangles away (clip distance 0,
-    see glsl/mesh.vert).
+    see glsl/backend/mesh.vert).
     """
     ctx.front_face = front_face
     ctx.cull_face = "back"

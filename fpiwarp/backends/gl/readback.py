@@ -3,9 +3,9 @@
 Reading 3 channels out of an RGBA target makes the driver convert every
 pixel on the CPU (a 4K uint8 frame: ~107 ms on NVIDIA's driver, ~15 ms on
 llvmpipe). An RGB32UI target holding 3-channel pixels packed into 12-byte
-texels (4 pixels of uint8, 2 of uint16, 1 of float32; see glsl/pack.glsl)
+texels (4 pixels of uint8, 2 of uint16, 1 of float32; see glsl/include/pack.glsl)
 reads back as a plain copy. The warp shader packs its own pixels where it
-is short (FPW_PACK_PIXELS); other passes are packed by glsl/pack_rgb.frag.
+is short (FPW_PACK_PIXELS); other passes are packed by glsl/backend/pack_rgb.frag.
 """
 
 import moderngl

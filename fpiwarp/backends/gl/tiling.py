@@ -5,7 +5,7 @@ A source above the limit is split into texture-sized tiles, and each
 output tile sums one additive pass per source tile into a float32
 accumulator: each tap belongs to exactly one tile, and the primary pass
 adds cval where the reference uses it, exactly once (FPW_TILED in
-glsl/fpiwarp_map.glsl). The sum is rounded on the host, so there is no
+glsl/include/sample.glsl). The sum is rounded on the host, so there is no
 size limit.
 """
 

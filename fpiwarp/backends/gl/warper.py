@@ -18,6 +18,7 @@ import moderngl
 import numpy as np
 
 from ... import block as P
+from ... import glsl
 from ...block import describe
 from ...validation import check_mode, check_order
 from . import readback
@@ -174,7 +175,7 @@ class GLWarper:
         if flat.shape[0] == 0:
             return out.reshape(pts.shape)
         stages = self.set_map(transform.params())
-        prog = self.program(ProgramKey("map_points.vert", stages=stages, varyings=("fpw_mapped",)))
+        prog = self.program(ProgramKey(glsl.MAP_POINTS_VERT, stages=stages, varyings=("fpw_mapped",)))
         caller = self._caller_framebuffer()
         self.targets.dummy.use()  # without a bound framebuffer (surfaceless EGL) nothing is captured
         try:
@@ -205,7 +206,7 @@ class GLWarper:
         quantized by the hardware, so results may differ from the reference
         by a level or so. Sources above the size limit use the software path.
         ``antialias=True`` averages each pixel's footprint (fpiwarp.sampling.antialias;
-        software sampling, FPW_ANTIALIAS in glsl/fpiwarp_map.glsl).
+        software sampling, FPW_ANTIALIAS in glsl/include/antialias.glsl).
         """
         return self.warp_block(image, transform.inverse.params(), output_shape, order=order, mode=mode, cval=cval,
                                hardware_filter=hardware_filter, antialias=antialias)
@@ -288,14 +289,14 @@ class GLWarper:
             output = None
         else:
             output = "int" if integer else "float"
-        key = ProgramKey(FULLSCREEN, "warp.frag", stages=stages, order=order, mode=mode,
+        key = ProgramKey(FULLSCREEN, glsl.WARP_FRAG, stages=stages, order=order, mode=mode,
                          source="hw" if hw else SOURCE_KINDS[image.dtype], gather_channels=c if gather else 0,
                          output=output, pack_pixels=readback.pixels_per_texel(image.dtype) if packs else 0,
                          flags=("FPW_ANTIALIAS",) if antialias else ())
         if mesh is None:
             return key, None, packs
         fill = key.with_changes(stages=None, output="fill_int" if integer else "fill")
-        return key.with_changes(vertex="mesh.vert", fragment="mesh.frag"), fill, False
+        return key.with_changes(vertex=glsl.MESH_VERT, fragment=glsl.MESH_FRAG), fill, False
 
     def _render_bound(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False):
         h, w, c = image.shape
@@ -399,7 +400,7 @@ class GLWarper:
             self.fullscreen_vao(fill).render(moderngl.TRIANGLES, vertices=3)
         draw()
         if c == 3 and self.pack_rgb:
-            pack = self.program(ProgramKey(FULLSCREEN, "pack_rgb.frag",
+            pack = self.program(ProgramKey(FULLSCREEN, glsl.PACK_RGB_FRAG,
                                            pack_pixels=readback.pixels_per_texel(image.dtype),
                                            flags=("FPW_PACK_FLOAT",) if image.dtype.kind == "f" else (),
                                            samples=False))

@@ -28,7 +28,7 @@ from support.kernel_cases import (
 )
 
 import fpiwarp
-from fpiwarp import FPI, Mobius, RLinear
+from fpiwarp import FPI, Mobius, RLinear, glsl
 from fpiwarp.block import Region, Stage, evaluate
 
 _small = {}
@@ -415,12 +415,12 @@ def test_flat_varyings_give_the_same_pictures_as_uniforms(gl):
 def test_flat_varyings_forward_what_fits(gl):
     """The per-draw values get MAX_PER_DRAW slots, the FPI rows of as many
     stages as the rest holds; below that budget, plain uniforms."""
-    from fpiwarp.backends.gl import FULLSCREEN, HOT_ROWS, MAX_PER_DRAW, ProgramKey, flat_value_sources
+    from fpiwarp.backends.gl import FULLSCREEN, HOT_ROWS, MAX_PER_DRAW, ProgramKey, flat_value_sources, stage_kinds
 
     key = ProgramKey(
         FULLSCREEN,
-        "warp.frag",
-        stages=tuple((s.core, s.n_regions) for s in fpiwarp.block.describe(_chain_of_fpis(6).params()).stages),
+        glsl.WARP_FRAG,
+        stages=stage_kinds(_chain_of_fpis(6).params()),
         order=1,
         mode="constant",
         source="unorm",
@@ -446,7 +446,7 @@ def test_flat_varyings_forward_what_fits(gl):
 
 def test_every_per_draw_list_fits_and_declares_what_is_read(gl):
     """Every full-screen program kind links with its per-draw values
-    forwarded (a value read but not listed in glsl/per_draw.glsl would not
+    forwarded (a value read but not listed in glsl/include/per_draw.glsl would not
     compile; more than MAX_PER_DRAW would stop at its #error), and the
     values reach the program under their own names."""
     from fpiwarp.backends.gl import FULLSCREEN, ProgramKey, flat_value_sources
@@ -459,9 +459,9 @@ def test_every_per_draw_list_fits_and_declares_what_is_read(gl):
         dict(source="unorm", output=None, pack_pixels=4),
         dict(source=None, output="fill_int"),
     ]
-    keys = [ProgramKey(FULLSCREEN, "warp.frag", stages=((0, 0),), order=1, mode="constant", **k) for k in kinds]
-    keys.append(ProgramKey(FULLSCREEN, "preview.frag", stages=((0, 0),), order=1, mode="constant"))
-    keys.append(ProgramKey(FULLSCREEN, "pack_rgb.frag", pack_pixels=4, samples=False))
+    keys = [ProgramKey(FULLSCREEN, glsl.WARP_FRAG, stages=((0, 0),), order=1, mode="constant", **k) for k in kinds]
+    keys.append(ProgramKey(FULLSCREEN, glsl.PREVIEW_FRAG, stages=((0, 0),), order=1, mode="constant"))
+    keys.append(ProgramKey(FULLSCREEN, glsl.PACK_RGB_FRAG, pack_pixels=4, samples=False))
     for key in keys:
         vs, fs = flat_value_sources(key, gl.warper.varying_slots)
         prog = gl.ctx.program(vertex_shader=vs, fragment_shader=fs)
@@ -469,7 +469,7 @@ def test_every_per_draw_list_fits_and_declares_what_is_read(gl):
             names = set(prog)
             if key.samples:  # (a fill reads cval only: the compiler drops the rest)
                 assert "fpw_cval" in names and ("fpw_src_size" in names or key.output == "fill_int"), key
-            if key.fragment == "preview.frag":
+            if key.fragment == glsl.PREVIEW_FRAG:
                 assert {"fpw_view", "pv_heat", "pv_dilation"} <= names
         finally:
             prog.release()
@@ -537,9 +537,9 @@ def test_packed_rgb_readback_equals_the_direct_one(gl, dtype):
                 packed.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval),
                 direct.warp_image_mesh(img, sample_fpi(), shape, order=1, mode="constant", cval=cval),
             )
-        in_shader = [key for key in packed.programs.programs if key.fragment == "warp.frag" and key.pack_pixels]
-        assert in_shader and any(key.fragment == "pack_rgb.frag" for key in packed.programs.programs)
-        assert not any(key.pack_pixels or key.fragment == "pack_rgb.frag" for key in direct.programs.programs)
+        in_shader = [key for key in packed.programs.programs if key.fragment == glsl.WARP_FRAG and key.pack_pixels]
+        assert in_shader and any(key.fragment == glsl.PACK_RGB_FRAG for key in packed.programs.programs)
+        assert not any(key.pack_pixels or key.fragment == glsl.PACK_RGB_FRAG for key in direct.programs.programs)
     finally:
         for w in (packed, direct, small):
             w.release()
@@ -558,7 +558,7 @@ def test_without_rgb32ui_targets_rgb_is_read_back_directly(gl, monkeypatch):
         assert not warper.pack_rgb
         img = make_image((30, 41, 3), np.uint8)
         compare_warp(warper, img, sample_fpi(), (30, 41), 1, "constant", [1, 2, 3])
-        assert not any(key.pack_pixels or key.fragment == "pack_rgb.frag" for key in warper.programs.programs)
+        assert not any(key.pack_pixels or key.fragment == glsl.PACK_RGB_FRAG for key in warper.programs.programs)
     finally:
         warper.release()
 

@@ -4,7 +4,7 @@
 // evaluates its own parameter block, one of the N blocks stacked in a
 // shader storage buffer (N blocks do not fit one uniform block). The
 // accessor differs, not the math: `fpw_rows` names the instance's block,
-// and every line of fpiwarp_map.glsl reads it as the single-image path does.
+// and every line of include/map.glsl reads it as the single-image path does.
 // Before including, a stage defines
 //   FPW_BATCH_VARYING  `flat out` (vertex stage) or `flat in` (fragment);
 //   FPW_BATCH_BLOCK    the index of the instance's block.

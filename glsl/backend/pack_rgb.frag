@@ -11,7 +11,7 @@
 // FPW_PACK_PIXELS pixels of 3 channels per texel, 4 (uint8), 2 (uint16) or
 // 1 (float32, FPW_PACK_FLOAT: the bits as they are). Bytes go in memory
 // order on a little-endian host (the host checks).
-#include "pack.glsl"
+#include "include/pack.glsl"
 #ifdef FPW_PACK_FLOAT
 uniform sampler2D fpw_unpacked;
 uvec4 fpw_bits(int x, int y) { return floatBitsToUint(texelFetch(fpw_unpacked, ivec2(x, y), 0)); }

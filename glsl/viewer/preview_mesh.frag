@@ -5,8 +5,8 @@
 // source position with preview_shade.glsl. With FPW_ANTIALIAS, the
 // footprint of a screen pixel (fpiwarp/_antialias.py) has the edges
 // d src / d window x and y, exact for the piecewise linear mesh.
-#include "fpiwarp_map.glsl"
-#include "preview_shade.glsl"
+#include "include/fpiwarp.glsl"
+#include "viewer/preview_shade.glsl"
 
 noperspective in vec2 fpw_src_pos;
 

@@ -12,14 +12,14 @@
 //
 // FPW_PER_DRAW_VALUES(X) lists the values of the program being built as
 // X(type, name); which ones follows the defines both stages see:
-//   FPW_WITH_SAMPLER       the sampler and output of fpiwarp_map.glsl;
+//   FPW_WITH_SAMPLER       the sampler and output of include/fpiwarp.glsl;
 //   FPW_FRAGMENT_WARP      warp.frag's view;
 //   FPW_FRAGMENT_PREVIEW, FPW_FRAGMENT_PREVIEW_MESH
 //                          preview_shade.glsl's view and settings.
 // The host budgets FPW_MAX_PER_DRAW varying slots for them (checked below).
 // (Directives stay on one line each: GLSL 3.30 has no line continuation.)
 // Include once per stage, then expand:
-//   FPW_DECLARE_PER_DRAW   in a fragment stage (fpiwarp_map.glsl does);
+//   FPW_DECLARE_PER_DRAW   in a fragment stage (include/fpiwarp.glsl does);
 //   FPW_FORWARD_PER_DRAW_DECLS / FPW_FORWARD_PER_DRAW in fullscreen.vert.
 
 #ifdef FPW_WITH_SAMPLER

@@ -1,7 +1,7 @@
 #version 330
 // Texture mapping of the deformed mesh: sample the source at the
 // interpolated source position with the software sampler.
-#include "fpiwarp_map.glsl"
+#include "include/fpiwarp.glsl"
 
 noperspective in vec2 fpw_src_pos;
 

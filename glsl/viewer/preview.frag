@@ -10,8 +10,8 @@
 // pixel), so a zoomed-out view is filtered by the map's shrinking and the
 // view's together, and a zoomed-in view of a map that does not shrink is
 // the plain draw, bit for bit.
-#include "fpiwarp_map.glsl"
-#include "preview_shade.glsl"
+#include "include/fpiwarp.glsl"
+#include "viewer/preview_shade.glsl"
 
 void main() {
     vec2 xy = fpw_view.xy + fpw_view.zw * (gl_FragCoord.xy - 0.5);

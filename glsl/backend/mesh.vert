@@ -2,7 +2,7 @@
 // The paper's own way: a triangulated mesh of the SOURCE, each vertex moved
 // by the forward map (the parameter block of the user's map, no inverse
 // needed), then rasterized with the source position as texture coordinate.
-#include "fpiwarp_map.glsl"
+#include "include/fpiwarp.glsl"
 
 in vec2 fpw_vertex;          // source position (x, y) of the vertex
 uniform vec4 fpw_view;       // as in warp.frag: out = view.xy + view.zw * (window - 0.5)

@@ -5,7 +5,7 @@
 // source pixels, so it deforms with the image, like the paper's figures)
 // and a heat map of the conformal dilation |f_zbar| / |f_z| coloured from
 // dark blue (0, conformal) to dark red (pv_heat_max and above).
-// Include after fpiwarp_map.glsl (with FPW_WITH_SAMPLER). Call pv_shade
+// Include after include/fpiwarp.glsl (with FPW_WITH_SAMPLER). Call pv_shade
 // from main() unconditionally: it differentiates src between fragments.
 // pv_shade_value shades a value the caller sampled (the antialiased
 // preview: FPW_ANTIALIAS, see preview.frag).
@@ -15,7 +15,7 @@
 
 // Its per-draw values (fpw_view, pv_background, pv_checker,
 // pv_checker_mix, pv_heat, pv_heat_max, pv_dilation: see per_draw.glsl)
-// are declared by fpiwarp_map.glsl (FPW_FRAGMENT_PREVIEW*).
+// are declared by include/fpiwarp.glsl (FPW_FRAGMENT_PREVIEW*).
 
 // The "jet" colour scale of the paper's figures: dark blue, blue, cyan,
 // yellow, red, dark red for t from 0 to 1.

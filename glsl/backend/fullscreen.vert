@@ -7,7 +7,7 @@
 // loads a uniform again for every pixel, a flat varying once per triangle,
 // which makes a 4K warp about twice as fast there; GPUs do not care.
 //   FPW_HOT_STAGES: rows FPW_ROW_PRE .. FPW_ROW_PRE + FPW_HOT_ROWS - 1 of the
-//     first FPW_HOT_STAGES stages of the block (fpw_row in fpiwarp_map.glsl);
+//     first FPW_HOT_STAGES stages of the block (fpw_row in include/block.glsl);
 //   FPW_FLAT_PER_DRAW: the per-draw values of the fragment program (the
 //     list in per_draw.glsl), declared here as uniforms under their names
 //     and copied into the flat members of the block FpwPerDraw.
@@ -17,7 +17,7 @@
 #ifdef FPW_BATCH
 #define FPW_BATCH_VARYING flat out
 #define FPW_BATCH_BLOCK (gl_InstanceID * fpw_batch_step)
-#include "batch.glsl"
+#include "include/batch.glsl"
 uniform int fpw_batch_rows;
 uniform int fpw_batch_count;
 uniform int fpw_batch_step;
@@ -30,7 +30,7 @@ layout(std140) uniform FpiwarpParams {
 #endif
 flat out vec4 fpw_hot[FPW_HOT_ROWS * FPW_HOT_STAGES];
 #endif
-#include "per_draw.glsl"
+#include "include/per_draw.glsl"
 FPW_FORWARD_PER_DRAW_DECLS
 
 void main() {

@@ -8,7 +8,7 @@
 #ifdef FPW_BATCH
 #define FPW_BATCH_VARYING
 #endif
-#include "fpiwarp_map.glsl"
+#include "include/fpiwarp.glsl"
 
 in vec2 fpw_point;
 out vec2 fpw_mapped;

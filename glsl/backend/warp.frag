@@ -2,7 +2,7 @@
 // Per-pixel backward warp: each fragment evaluates the parameter block (the
 // INVERSE of the user's map) at its own output position and samples the
 // source there.
-#include "fpiwarp_map.glsl"
+#include "include/fpiwarp.glsl"
 
 // Output position of a fragment, in fpiwarp's pixel convention (centers at
 // integers, x = column, y = row): view.xy + view.zw * (gl_FragCoord.xy - 0.5).
@@ -10,7 +10,7 @@
 // center on an integer. With view = (x0, y0, 1, 1) window row j is output
 // row y0 + j, so glReadPixels (bottom row first) returns rows top-down in
 // image order; a viewer drawing to a y-up screen passes a negative view.w.
-// (fpw_view is a per-draw value, declared by fpiwarp_map.glsl from the
+// (fpw_view is a per-draw value, declared by include/fpiwarp.glsl from the
 // list in per_draw.glsl.)
 
 // A batch (FPW_BATCH) draws image k at framebuffer rows from fpw_batch.z on

@@ -1,0 +1,126 @@
+// Antialiasing from the analytic Jacobian (FPW_ANTIALIAS): the stage walk
+// with Wirtinger derivatives and the footprint average, mirroring
+// fpiwarp/_antialias.py and fpiwarp/block/jacobian.py. Part of
+// fpiwarp.glsl (FPW_WITH_SAMPLER), after sample.glsl.
+
+#ifdef FPW_ANTIALIAS
+// ---- antialiasing (fpiwarp/_antialias.py, fpiwarp/block/jacobian.py) ------
+// The block's Wirtinger derivatives chained stage after stage, and the
+// average of nx × ny sub-samples of the pixel's footprint, the
+// parallelogram spanned by the Jacobian's columns ex, ey.
+
+// (g o f)_z, (g o f)_zbar from g's derivatives (gw, gwb) and f's (dz, dzb)
+void fpw_chain(vec2 gw, vec2 gwb, inout vec2 dz, inout vec2 dzb) {
+    vec2 a = fpw_cmul(gw, dz) + fpw_cmul(gwb, fpw_conj(dzb));
+    dzb = fpw_cmul(gw, dzb) + fpw_cmul(gwb, fpw_conj(dz));
+    dz = a;
+}
+
+// jacobian.stage_wirtinger: fpw_stage with its derivatives chained into dz, dzb
+vec2 fpw_stage_wirtinger(vec2 z, int base, inout vec2 dz, inout vec2 dzb) {
+    vec4 header = fpw_rows[base + FPW_ROW_HEADER];
+    int core = int(header.x);
+    int n = int(header.y);
+    int n_regions = int(header.z);
+    int iters = int(header.w);
+    float best = 0.0;
+    vec2 outside = vec2(fpw_nan());
+    vec2 outside_dz = vec2(fpw_nan());
+    for (int r = 0; r < n_regions; ++r) {
+        vec4 on = fpw_rows[base + FPW_ROW_REGIONS + 2 * r];
+        vec4 ab = fpw_rows[base + FPW_ROW_REGIONS + 2 * r + 1];
+        float depth = fpw_cmul(z - on.xy, fpw_conj(on.zw)).x;
+        if (depth > best) {
+            best = depth;
+            outside = fpw_cmul(ab.xy, z) + ab.zw;
+            outside_dz = ab.xy;
+        }
+    }
+    if (best > 0.0) {
+        fpw_chain(outside_dz, vec2(0.0), dz, dzb);
+        return outside;
+    }
+    vec4 pre = fpw_row(base + FPW_ROW_PRE);
+    vec4 scale = fpw_row(base + FPW_ROW_SCALE);
+    vec4 post = fpw_row(base + FPW_ROW_POST);
+    vec2 u = z - pre.xy;
+    vec2 den = vec2(1.0, 0.0) - fpw_cmul(pre.zw, u);
+    vec2 p = fpw_cdiv(fpw_cmul(scale.xy, u), den);
+    vec2 sdz = fpw_cdiv(scale.xy, fpw_cmul(den, den));
+    vec2 sdzb = vec2(0.0);
+    vec2 val, gz, gzb;
+    if (core == FPW_CORE_AFFINE) {
+        vec4 l12 = fpw_row(base + FPW_ROW_L12);
+        p = fpw_cmul(l12.xy, p) + fpw_cmul(l12.zw, fpw_conj(p)) + fpw_row(base + FPW_ROW_L3).xy;
+        fpw_chain(l12.xy, l12.zw, sdz, sdzb);
+    } else if (core == FPW_CORE_TPS || core == FPW_CORE_TPS_PAIRS) {
+        fpw_tps(p, base, n, core == FPW_CORE_TPS_PAIRS, val, gz, gzb);
+        p = val;
+        fpw_chain(gz, gzb, sdz, sdzb);
+    } else if (core == FPW_CORE_TPS_INVERSE || core == FPW_CORE_TPS_PAIRS_INVERSE) {
+        bool paired = core == FPW_CORE_TPS_PAIRS_INVERSE;
+        p = fpw_newton(p, base, n, paired, iters, fpw_row(base + FPW_ROW_L3).z);
+        fpw_tps(p, base, n, paired, val, gz, gzb);
+        float det = dot(gz, gz) - dot(gzb, gzb);
+        fpw_chain(fpw_conj(gz) / det, -gzb / det, sdz, sdzb);
+    } else {
+        dz = vec2(fpw_nan());
+        dzb = vec2(fpw_nan());
+        return vec2(fpw_nan());
+    }
+    vec2 den2 = vec2(1.0, 0.0) - fpw_cmul(post.xy, p);
+    vec2 g = fpw_cdiv(scale.zw, fpw_cmul(den2, den2));
+    fpw_chain(fpw_cmul(g, sdz), fpw_cmul(g, sdzb), dz, dzb);
+    return post.zw + fpw_cdiv(fpw_cmul(scale.zw, p), den2);
+}
+
+// _antialias.tap_counts: 1 for len <= 1 + FPW_AA_SLACK or NaN, else
+// ceil(min(len / SPACING, max(KNEE_TAPS, len / FAR_SPACING)) - SLACK) in
+// 2..FPW_AA_MAX_TAPS
+float fpw_aa_count(float len) {
+    if (isnan(len) || len <= 1.0 + FPW_AA_SLACK) return 1.0;
+    float n = min(len / FPW_AA_SPACING, max(float(FPW_AA_KNEE_TAPS), len / FPW_AA_FAR_SPACING));
+    return clamp(ceil(n - FPW_AA_SLACK), 2.0, float(FPW_AA_MAX_TAPS));
+}
+
+// jacobian.wirtinger: the block map's derivatives f_z, f_zbar at xy
+void fpw_map_wirtinger(vec2 xy, out vec2 dz, out vec2 dzb) {
+    dz = vec2(1.0, 0.0);
+    dzb = vec2(0.0);
+    vec2 z = xy;
+    int n_stages = int(fpw_rows[0].x);
+    for (int k = 0; k < n_stages; ++k) {
+        z = fpw_stage_wirtinger(z, 1 + k * FPW_STAGE_ROWS, dz, dzb);
+    }
+}
+
+// the footprint's edges J (1, 0) and J (0, 1) (_antialias.footprint_edges)
+vec2 fpw_edge_x(vec2 dz, vec2 dzb) { return dz + dzb; }
+vec2 fpw_edge_y(vec2 dz, vec2 dzb) { return vec2(dzb.y - dz.y, dz.x - dzb.x); }
+
+// _antialias.sample_antialiased at source position pos with footprint
+// edges ex, ey (source pixels)
+vec4 fpw_sample_footprint(vec2 pos, vec2 ex, vec2 ey) {
+    float nx = fpw_aa_count(length(ex));
+    float ny = fpw_aa_count(length(ey));
+    if (nx == 1.0 && ny == 1.0) return fpw_sample(pos);
+    if (!fpw_in_range(pos)) return fpw_cval_term();
+    vec4 acc = vec4(0.0);
+    for (int j = 0; j < int(ny); ++j) {
+        float t = (2.0 * float(j) + 1.0 - ny) / (2.0 * ny);
+        for (int i = 0; i < int(nx); ++i) {
+            float s = (2.0 * float(i) + 1.0 - nx) / (2.0 * nx);
+            acc += fpw_sample(pos + (ex * s + ey * t));
+        }
+    }
+    return acc / (nx * ny);
+}
+
+// _antialias.sample_antialiased at output position xy
+vec4 fpw_sample_antialiased(vec2 xy) {
+    vec2 pos = fpw_map(xy);  // exactly the plain warp's position
+    vec2 dz, dzb;
+    fpw_map_wirtinger(xy, dz, dzb);
+    return fpw_sample_footprint(pos, fpw_edge_x(dz, dzb), fpw_edge_y(dz, dzb));
+}
+#endif  // FPW_ANTIALIAS

@@ -1,0 +1,203 @@
+// The map: the block evaluated at a point, mirroring fpiwarp/block/reference.py
+// (evaluate / evaluate_stage / tps_core / newton) line by line, in float32.
+// Complex numbers are vec2 (re, im). Reads the block through block.glsl.
+// Part of fpiwarp.glsl.
+
+// A quiet NaN from its bits: 0.0 / 0.0 may be folded away by a compiler.
+float fpw_nan() { return uintBitsToFloat(0x7fc00000u); }
+
+bool fpw_finite(vec2 v) {
+    return !(any(isnan(v)) || any(isinf(v)));
+}
+
+// A source position counts as outside (cval) unless finite and within
+// FPW_COORD_LIMIT of the origin in x and y, like _sampling.sample.
+bool fpw_in_range(vec2 v) {
+    return fpw_finite(v) && all(lessThanEqual(abs(v), vec2(FPW_COORD_LIMIT)));
+}
+
+// ---- complex arithmetic ---------------------------------------------------
+vec2 fpw_cmul(vec2 a, vec2 b) { return vec2(a.x * b.x - a.y * b.y, a.x * b.y + a.y * b.x); }
+vec2 fpw_conj(vec2 a) { return vec2(a.x, -a.y); }
+vec2 fpw_cdiv(vec2 a, vec2 b) {
+    float d = b.x * b.x + b.y * b.y;
+    return vec2(a.x * b.x + a.y * b.y, a.y * b.x - a.x * b.y) / d;
+}
+
+// ---- cores -----------------------------------------------------------------
+// tps_pairs.tps_pairs_core: the n / 2 pairs of n center rows at p, added
+// to val, dz, dzb (see fpiwarp/block/tps_pairs.py for the formulas).
+void fpw_tps_pairs(vec2 p, int base, int n, inout vec2 val, inout vec2 dz, inout vec2 dzb) {
+    for (int j = 0; j < n; j += 2) {
+        vec4 cw = fpw_rows[base + FPW_ROW_CENTERS + j];      // center c, summed weight W
+        vec4 db = fpw_rows[base + FPW_ROW_CENTERS + j + 1];  // offset d, weight b2
+        vec2 q = p - cw.xy;
+        vec2 q2 = q - db.xy;
+        float a = dot(q, q);
+        float b = dot(q2, q2);
+        float e = dot(db.xy, db.xy) - 2.0 * dot(q, db.xy);
+        bool near_a = a <= b;
+        float s = near_a ? a : b;
+        float m = near_a ? b : a;
+        // tps_pairs.pair_logs: log(max) from the series where it holds
+        float ae = abs(e);
+        bool ok = s > 0.0 && ae <= 0.25 * s;
+        float t = ok ? ae / (2.0 * s + ae) : 0.0;
+        float t2 = t * t;
+        float series = 2.0 * t * (1.0 + t2 * (0.33333333 + t2 * (0.2 + t2 * 0.14285714)));
+        float ls = s > 0.0 ? log(s) : 0.0;
+        float lm = ls + series;
+        if (!ok) {
+            lm = m > 0.0 ? log(m) : 0.0;
+        }
+        float mag = ok ? series : lm - ls;
+        float big_l = e < 0.0 ? -mag : mag;
+        float la = near_a ? ls : lm;
+        val += cw.zw * (0.5 * a * la) + db.zw * (0.5 * (e * lm + s * big_l));
+        float g1 = 0.5 * (la + 1.0);
+        float gn = 0.5 * (lm + 1.0);
+        vec2 qn = near_a ? q : q2;
+        dz += fpw_cmul(cw.zw, fpw_conj(q) * g1) + fpw_cmul(db.zw, fpw_conj(qn) * (0.5 * big_l) - fpw_conj(db.xy) * gn);
+        dzb += fpw_cmul(cw.zw, q * g1) + fpw_cmul(db.zw, qn * (0.5 * big_l) - db.xy * gn);
+    }
+}
+
+// _tps: the thin-plate spline core and its Wirtinger derivatives at p
+// (paired: the center rows are pairs, FPW_CORE_TPS_PAIRS*).
+void fpw_tps(vec2 p, int base, int n, bool paired, out vec2 val, out vec2 dz, out vec2 dzb) {
+    vec4 l12 = fpw_row(base + FPW_ROW_L12);
+    vec2 l3 = fpw_row(base + FPW_ROW_L3).xy;
+    val = fpw_cmul(l12.xy, p) + fpw_cmul(l12.zw, fpw_conj(p)) + l3;
+    dz = l12.xy;
+    dzb = l12.zw;
+    if (paired) {
+        fpw_tps_pairs(p, base, n, val, dz, dzb);
+        return;
+    }
+    for (int j = 0; j < n; ++j) {
+        vec4 cb = fpw_rows[base + FPW_ROW_CENTERS + j];  // center c, weight b
+        vec2 d = p - cb.xy;
+        float r2 = d.x * d.x + d.y * d.y;
+        float lg = r2 > 0.0 ? log(r2) : 0.0;
+        val += cb.zw * (0.5 * r2 * lg);
+        vec2 g = 0.5 * cb.zw * (lg + 1.0);
+        dz += fpw_cmul(g, fpw_conj(d));
+        dzb += fpw_cmul(g, d);
+    }
+}
+
+// reference.seed_correction: the seed table's bilinear correction at t,
+// added to the R-linear seed (f clamped to [0, SEED_N - 1], NaN: 0).
+vec2 fpw_seed_node(int base, int k) {
+    vec4 r = fpw_rows[base + FPW_ROW_SEED_GRID + k / 2];
+    return (k % 2) == 0 ? r.xy : r.zw;
+}
+
+vec2 fpw_seed_correction(vec2 t, int base) {
+    vec4 box = fpw_rows[base + FPW_ROW_SEED];
+    vec2 f = (t - box.xy) * box.zw;
+    f.x = f.x > 0.0 ? min(f.x, float(FPW_SEED_N - 1)) : 0.0;
+    f.y = f.y > 0.0 ? min(f.y, float(FPW_SEED_N - 1)) : 0.0;
+    int i = min(int(f.x), FPW_SEED_N - 2);
+    int j = min(int(f.y), FPW_SEED_N - 2);
+    float tx = f.x - float(i);
+    float ty = f.y - float(j);
+    int k = j * FPW_SEED_N + i;
+    vec2 c00 = fpw_seed_node(base, k);
+    vec2 c01 = fpw_seed_node(base, k + 1);
+    vec2 c10 = fpw_seed_node(base, k + FPW_SEED_N);
+    vec2 c11 = fpw_seed_node(base, k + FPW_SEED_N + 1);
+    vec2 bottom = c00 + (c01 - c00) * tx;
+    vec2 top = c10 + (c11 - c10) * tx;
+    return bottom + (top - bottom) * ty;
+}
+
+// _newton: solve TPS(x) = target from the inverse of the affine part plus
+// the seed table's correction.
+// A point stops moving once it is within tol (like the reference's
+// per-point `done`); not converged after `iters` steps gives NaN.
+vec2 fpw_newton(vec2 target, int base, int n, bool paired, int iters, float tol) {
+    vec4 mu12 = fpw_rows[base + FPW_ROW_MU12];
+    vec2 mu3 = fpw_rows[base + FPW_ROW_MU3].xy;
+    vec2 x = fpw_cmul(mu12.xy, target) + fpw_cmul(mu12.zw, fpw_conj(target)) + mu3
+             + fpw_seed_correction(target, base);
+    vec2 val, dz, dzb;
+    bool done = false;
+    for (int it = 0; it < iters; ++it) {
+        fpw_tps(x, base, n, paired, val, dz, dzb);
+        vec2 res = val - target;
+        done = length(res) <= tol;
+        if (done) break;
+        float det = dot(dz, dz) - dot(dzb, dzb);
+        vec2 step = (fpw_cmul(fpw_conj(dz), res) - fpw_cmul(dzb, fpw_conj(res))) / det;
+        x = x - step;
+    }
+    if (!done) {  // the reference's for-else: check the last iterate
+        fpw_tps(x, base, n, paired, val, dz, dzb);
+        done = length(val - target) <= tol;
+    }
+    return done ? x : vec2(fpw_nan());
+}
+
+// ---- one stage and the whole map -----------------------------------------
+// _evaluate_stage: regions, pre-Möbius, core, post-Möbius. `core` and
+// `n_regions` are arguments so that a program specialized to one kind of
+// map can pass constants (the compiler then drops the other cores and
+// reads the block at fixed offsets); the values still come from the block.
+vec2 fpw_stage_of(vec2 z, int base, int core, int n_regions) {
+    vec4 header = fpw_rows[base + FPW_ROW_HEADER];
+    int n = int(header.y);
+    int iters = int(header.w);
+    float best = 0.0;
+    vec2 outside = vec2(fpw_nan());
+    for (int r = 0; r < n_regions; ++r) {
+        vec4 on = fpw_rows[base + FPW_ROW_REGIONS + 2 * r];     // origin, normal
+        vec4 ab = fpw_rows[base + FPW_ROW_REGIONS + 2 * r + 1]; // a, b
+        float depth = fpw_cmul(z - on.xy, fpw_conj(on.zw)).x;
+        if (depth > best) {
+            best = depth;
+            outside = fpw_cmul(ab.xy, z) + ab.zw;
+        }
+    }
+    if (best > 0.0) return outside;  // the reference's final where(best > 0, ...)
+    vec4 pre = fpw_row(base + FPW_ROW_PRE);      // q1, s1
+    vec4 scale = fpw_row(base + FPW_ROW_SCALE);  // k1, k2
+    vec4 post = fpw_row(base + FPW_ROW_POST);    // s2, q2
+    vec2 u = z - pre.xy;
+    vec2 p = fpw_cdiv(fpw_cmul(scale.xy, u), vec2(1.0, 0.0) - fpw_cmul(pre.zw, u));
+    if (core == FPW_CORE_AFFINE) {
+        vec4 l12 = fpw_row(base + FPW_ROW_L12);
+        vec2 l3 = fpw_row(base + FPW_ROW_L3).xy;
+        p = fpw_cmul(l12.xy, p) + fpw_cmul(l12.zw, fpw_conj(p)) + l3;
+    } else if (core == FPW_CORE_TPS || core == FPW_CORE_TPS_PAIRS) {
+        vec2 dz, dzb;
+        fpw_tps(p, base, n, core == FPW_CORE_TPS_PAIRS, p, dz, dzb);
+    } else if (core == FPW_CORE_TPS_INVERSE || core == FPW_CORE_TPS_PAIRS_INVERSE) {
+        p = fpw_newton(p, base, n, core == FPW_CORE_TPS_PAIRS_INVERSE, iters, fpw_row(base + FPW_ROW_L3).z);
+    } else {
+        return vec2(fpw_nan());  // a core this shader does not know: outside (the host refuses it first)
+    }
+    return post.zw + fpw_cdiv(fpw_cmul(scale.zw, p), vec2(1.0, 0.0) - fpw_cmul(post.xy, p));
+}
+
+// One stage with its kind read from the block header (any map).
+vec2 fpw_stage(vec2 z, int base) {
+    vec4 header = fpw_rows[base + FPW_ROW_HEADER];
+    return fpw_stage_of(z, base, int(header.x), int(header.z));
+}
+
+// evaluate: the stages in order. A program specialized to one kind of map
+// gets FPW_STAGES from the host: a list of
+//   z = fpw_stage_of(z, base, core, n_regions);
+// with constants, one per stage (the same evaluation, unrolled).
+vec2 fpw_map(vec2 z) {
+#ifdef FPW_STAGES
+    FPW_STAGES
+#else
+    int n_stages = int(fpw_rows[0].x);
+    for (int k = 0; k < n_stages; ++k) {
+        z = fpw_stage(z, 1 + k * FPW_STAGE_ROWS);
+    }
+#endif
+    return z;
+}

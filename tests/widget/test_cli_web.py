@@ -1,0 +1,32 @@
+"""fpiwarp preview IMAGE --web --screenshot: one frame from headless Chromium."""
+
+import numpy as np
+
+import fpiwarp
+from fpiwarp import io
+from fpiwarp.cli import main
+
+DST = "6,4,75,-5,84,62,-4,55"
+
+
+def test_web_screenshot_is_the_warped_picture(chromium, tmp_path, capsys):
+    rng = np.random.default_rng(2)
+    img = (rng.random((60, 80, 3)) * 255).astype(np.uint8)
+    src = tmp_path / "in.png"
+    io.write_image(src, img)
+    out = tmp_path / "exact.png"
+    assert main(["preview", str(src), "--web", "--screenshot", str(out), "--no-overlay", "--dst", DST,
+                 "--edges", "0,2"]) == 0
+    frame, _ = io.read_image(out)
+    f = fpiwarp.LocalDeformation([[0, 0], [79, 0], [79, 59], [0, 59]], np.array(DST.split(","), float).reshape(4, 2),
+                                 edges=(0, 2))
+    ref = fpiwarp.warp_image(img, f, backend="numpy")
+    assert frame.shape == img.shape
+    assert np.mean(np.abs(frame.astype(int) - ref).max(-1) <= 2) >= 0.99
+    shot = tmp_path / "overlay.png"
+    assert main(["preview", str(src), "--web", "--screenshot", str(shot), "--dst", DST]) == 0
+    frame, _ = io.read_image(shot)
+    yellow = (frame[..., 0] > 230) & (frame[..., 1] > 190) & (frame[..., 2] < 60)  # a handle's colour
+    assert yellow.sum() > 20
+    assert main(["preview", str(src), "--web", "--screenshot", str(shot), "--dst", DST]) == 1  # exists: kept
+    assert "already exists" in capsys.readouterr().err
