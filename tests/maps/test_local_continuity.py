@@ -25,7 +25,7 @@ def cplx(p):
 def line_deviation(f, box, n=2001):
     """max over the constrained lines, inside the box and bordering the
     inner part, of |inner(p) - S_k(p)| (the jump across the line) relative
-    to the ROI's edge length on the ROI's edge, to the extended edge's beyond."""
+    to the extended edge's length (the paper's construction: the ROI's edge)."""
     z, w = cplx(f.src), cplx(f.dst)
     worst = 0.0
     for reg, k in zip(f.regions, f.edges):
@@ -39,12 +39,9 @@ def line_deviation(f, box, n=2001):
         if not p.size:
             continue
         dev = np.abs(f.inner.map_complex(p) - (a * p + b))
-        s = ((p - z[k]) * np.conj(e)).real / abs(e) ** 2  # on the ROI's edge: 0 <= s <= 1
-        on = (s >= 0) & (s <= 1)
-        # the bound: of the ROI's edge on it, of the extended edge (the fit's) beyond it
-        ext = abs(cplx(f.inner.dst)[(k + 1) % 4] - cplx(f.inner.dst)[k])
-        worst = max(worst, float(np.max(dev[on], initial=0)) / abs(w[(k + 1) % 4] - w[k]),
-                    float(np.max(dev[~on], initial=0)) / ext)
+        # the bound is relative to the extended edge (the fit's): the line's length in the picture
+        ext = abs(cplx(f.inner.dst)[(k + 1) % 4] - cplx(f.inner.dst)[k]) if f.construction == "continuous" else None
+        worst = max(worst, float(dev.max()) / (ext or abs(w[(k + 1) % 4] - w[k])))
     return worst
 
 
