@@ -80,7 +80,7 @@ def configurations(n, seed, grid_n):
         edges = (0, 2) if rng.random() < 0.5 else (1, 3)
         try:
             f = ConstrainedFPI(src, dst, edges, **VARIANTS[0][1])
-            LocalDeformation(src, dst, edges, **VARIANTS[0][1])
+            LocalDeformation(src, dst, edges, construction="paper", **VARIANTS[0][1])
         except ValueError:
             continue
         if np.min(jacobian_determinant(f, grid(src, grid_n))) > 0:
@@ -102,7 +102,7 @@ def edge_deviation(f, src, dst, edges, n=401):
 
 def local_jump(src, dst, edges, kw, n=401):
     """Largest |L(p + eps n) - L(p - eps n)| / edge length across the edges."""
-    loc = LocalDeformation(src, dst, edges, **{k: v for k, v in kw.items() if k != PLAIN})
+    loc = LocalDeformation(src, dst, edges, construction="paper", **{k: v for k, v in kw.items() if k != PLAIN})
     z, w = _c(src), _c(dst)
     eps = 1e-9 * float(np.max(np.abs(z - z.mean())))
     t = np.linspace(0.0, 1.0, n)[1:-1]

@@ -24,6 +24,7 @@ from .errors import (
     OutputIsFolderError,
     SizeLimitError,
     SpecError,
+    ThreadOwnershipError,
 )
 from .io.images import read_image, write_image
 from .maps.constrained import ConstrainedFPI
@@ -62,6 +63,7 @@ __all__ = [
     "RLinear",
     "SizeLimitError",
     "SpecError",
+    "ThreadOwnershipError",
     "ThinPlateSpline",
     "Transform",
     "available_backends",

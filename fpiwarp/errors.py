@@ -37,6 +37,7 @@ __all__ = [
     "OutputIsFolderError",
     "SizeLimitError",
     "SpecError",
+    "ThreadOwnershipError",
 ]
 
 
@@ -95,6 +96,11 @@ class FoldOverError(ConstraintError):
 class BackendUnavailableError(FpiwarpError, RuntimeError):
     """A backend was asked for that cannot run here; the message says why
     and which extra to install."""
+
+
+class ThreadOwnershipError(FpiwarpError, RuntimeError):
+    """A thread-bound resource (the gl backend's OpenGL context) used from a
+    thread that does not own it; the message says how to hand it over."""
 
 
 class MissingDependencyError(FpiwarpError, ImportError):

@@ -119,3 +119,20 @@ def test_warp_image_errors_are_fpiwarp_errors():
         args = {"image": image, "transform": f, **kwargs}
         with pytest.raises(fpiwarp.FpiwarpError):
             fpiwarp.warp_image(args.pop("image"), args.pop("transform"), **args)
+
+
+def test_the_gl_thread_refusal_and_the_line_bounds_refusal_are_fpiwarp_errors():
+    """Both stay catchable as before (RuntimeError, ValueError)."""
+    import numpy as np
+
+    assert issubclass(fpiwarp.ThreadOwnershipError, fpiwarp.FpiwarpError)
+    assert issubclass(fpiwarp.ThreadOwnershipError, RuntimeError)
+    dart = np.array([[0, 0], [4, 0], [2, 1], [2, 3]], float)
+    for construction in ("continuous", "paper"):
+        try:
+            fpiwarp.LocalDeformation(dart, dart, edges=(0, 2), construction=construction)
+        except fpiwarp.ConstraintError as exc:
+            assert isinstance(exc, ValueError) and "\n" not in str(exc)
+            assert "src point 1 lies beyond the line of constrained edge 2" in str(exc)
+        else:
+            raise AssertionError("not refused")

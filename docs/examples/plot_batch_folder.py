@@ -23,7 +23,7 @@ from fpiwarp.batch.folders import run_batch
 from fpiwarp.spec import save_spec
 
 with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-    image, _ = fpiwarp.read_image(path)
+    image = fpiwarp.read_image(path)
 
 # %%
 # A folder of three small PNG files: crops of the sample picture.
@@ -50,12 +50,12 @@ print(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
 files = sorted(outputs.glob("*.png"))
 fig, axes = plt.subplots(2, len(files), figsize=(9, 4.4))
 for col, out in enumerate(files):
-    axes[0, col].imshow(fpiwarp.read_image(inputs / out.name)[0])
+    axes[0, col].imshow(fpiwarp.read_image(inputs / out.name))
     axes[0, col].set_title(f"photos/{out.name}")
-    axes[1, col].imshow(fpiwarp.read_image(out)[0])
+    axes[1, col].imshow(fpiwarp.read_image(out))
     axes[1, col].set_title(f"warped/{out.name}")
 for ax in axes.flat:
     ax.set_axis_off()
 fig.tight_layout()
 plt.show()
-print("the inputs are unchanged:", np.array_equal(fpiwarp.read_image(inputs / "crop0.png")[0], image[:200, :240]))
+print("the inputs are unchanged:", np.array_equal(fpiwarp.read_image(inputs / "crop0.png"), image[:200, :240]))

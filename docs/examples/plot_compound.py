@@ -16,7 +16,7 @@ import numpy as np
 import fpiwarp
 
 with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-    image, _ = fpiwarp.read_image(path)
+    image = fpiwarp.read_image(path)
 image = image[::2, ::2]
 h, w = image.shape[:2]
 

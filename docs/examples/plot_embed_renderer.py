@@ -29,7 +29,7 @@ from fpiwarp.viewer import render_image
 from fpiwarp.viewer.examples.mglw_embed import sample_map
 
 with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-    image, _ = fpiwarp.read_image(path)
+    image = fpiwarp.read_image(path)
 
 # %%
 # The heart of both applications is a few calls on the renderer inside
@@ -70,7 +70,7 @@ frame = render_image(image, f, overlays=("handles", "outline", "heatmap"))
 shot = Path(tempfile.mkdtemp()) / "mglw.png"
 subprocess.run([sys.executable, "-m", "fpiwarp.viewer.examples.mglw_embed", "--frames", "1", "--screenshot", str(shot)],
                check=True, capture_output=True)
-app_frame, _ = fpiwarp.read_image(shot)
+app_frame = fpiwarp.read_image(shot)
 
 fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
 axes[0].imshow(frame)

@@ -17,7 +17,7 @@ import fpiwarp
 import fpiwarp.metrics
 
 with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-    image, info = fpiwarp.read_image(path)
+    image, info = fpiwarp.read_image(path, with_info=True)
 h, w = image.shape[:2]
 
 # %%

@@ -18,7 +18,7 @@ import skimage.transform
 import fpiwarp
 
 with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-    image, _ = fpiwarp.read_image(path)
+    image = fpiwarp.read_image(path)
 image = image[::2, ::2]
 h, w = image.shape[:2]
 f = fpiwarp.FPI([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]],

@@ -40,7 +40,7 @@ def process_file(src, dst, warper, options):
     try:
         if not options.overwrite and dst.is_file():
             return "skipped", str(src), None
-        image, info = read_image(src, orientation=options.orientation)
+        image, info = read_image(src, orientation=options.orientation, with_info=True)
         dtype, channels = image.dtype, (1 if image.ndim == 2 else image.shape[2])
         check_writable(dst, dtype, channels, info)
         out = warper(image)

@@ -320,7 +320,7 @@ class _Read:
             return
         self.result = None
         try:
-            self.image, self.info = read_image(src, orientation=options.orientation)
+            self.image, self.info = read_image(src, orientation=options.orientation, with_info=True)
             channels = 1 if self.image.ndim == 2 else self.image.shape[2]
             check_writable(dst, self.image.dtype, channels, self.info)
         except FILE_ERRORS as exc:

@@ -44,7 +44,7 @@ __all__ = ["BatchSummary", "Progress", "Warper", "list_inputs", "run_batch", "wa
 
 def _as_image(item):
     if isinstance(item, (str, os.PathLike)):
-        return read_image(item)[0]
+        return read_image(item)
     return item
 
 

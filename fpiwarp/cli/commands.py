@@ -77,7 +77,7 @@ def cmd_demo(args):
     """Warp the bundled sample picture and say where it went and its K."""
     check_output_path(None, args.output, args.overwrite)
     with resources.as_file(resources.files("fpiwarp.data").joinpath("sample.png")) as sample:
-        image, info = read_image(sample)
+        image, info = read_image(sample, with_info=True)
     h, w = image.shape[:2]
     src = [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]]
     dst = [[fx * (w - 1), fy * (h - 1)] for fx, fy in DEMO_DST]
@@ -97,8 +97,11 @@ def cmd_warp(args):
     if not Path(args.input).exists():
         raise FileNotFoundError(f"no such file: {args.input}")
     check_output_path(args.input, args.output, args.overwrite)
-    image, info = read_image(args.input, orientation=args.orientation)
+    image, info = read_image(args.input, orientation=args.orientation, with_info=True)
     check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
+    if hasattr(transform, "for_picture"):  # a local deformation: continuous over this picture and the output
+        out_h, out_w = output_shape or image.shape[:2]
+        transform = transform.for_picture(max(image.shape[1], out_w), max(image.shape[0], out_h))
     warped = warp_image(
         image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend,
         antialias=args.antialias,
@@ -188,7 +191,7 @@ def cmd_preview(args):
         raise FileNotFoundError(f"no such file: {args.input}")
     if args.screenshot is not None:
         check_output_path(args.input, args.screenshot, args.overwrite)
-    image, info = read_image(args.input, orientation=args.orientation)
+    image, info = read_image(args.input, orientation=args.orientation, with_info=True)
     transform = _preview_transform(args, image)
     overlays = () if args.no_overlay else ("handles", "outline")
     if args.web:

@@ -2,7 +2,9 @@
 
 ``read_image(path)`` returns an array in one of the layouts
 :func:`fpiwarp.warp_image` takes (uint8, uint16 or float32; (H, W) gray or
-(H, W, C) with C = 2 gray+alpha, 3 RGB, 4 RGBA or CMYK) and an
+(H, W, C) with C = 2 gray+alpha, 3 RGB, 4 RGBA or CMYK), as imageio,
+scikit-image, OpenCV and ``np.asarray(PIL.Image.open(path))`` do;
+``read_image(path, with_info=True)`` returns ``(array, info)``, an
 :class:`ImageInfo` with what is needed to write the result back the same
 way: format, color mode and metadata (ICC profile, EXIF, resolution, PNG
 text and color chunks, JPEG quantization tables, TIFF compression).
@@ -68,9 +70,10 @@ __all__ = [
 
 
 def read_image(
-    path: str | os.PathLike, *, orientation: str = "apply", max_pixels: int = MAX_PIXELS
-) -> tuple[np.ndarray, ImageInfo]:
-    """Read an image file; return ``(array, info)``.
+    path: str | os.PathLike, *, orientation: str = "apply", max_pixels: int = MAX_PIXELS, with_info: bool = False
+) -> np.ndarray | tuple[np.ndarray, ImageInfo]:
+    """Read an image file; return its pixels (with ``with_info=True``:
+    ``(pixels, info)``, the metadata to write a warped copy alike).
 
     8- and 16-bit PNG is decoded by fpiwarp itself; the other formats by
     Pillow (a dependency); TIFFs Pillow cannot read (16-bit colour or
@@ -88,6 +91,9 @@ def read_image(
     max_pixels : int, optional
         An image of more pixels is refused from its header, before
         decoding; default ``fpiwarp.io.MAX_PIXELS``, Pillow's limit.
+    with_info : bool, optional
+        Also return the file's :class:`ImageInfo` (default False: the
+        pixels only, like every other image reader).
 
     Returns
     -------
@@ -95,8 +101,8 @@ def read_image(
         (H, W) or (H, W, C), uint8, uint16 or float32, row 0 at the top,
         channels in RGB(A) order.
     info : ImageInfo
-        How the file stored it (mode, metadata), for
-        :func:`write_image` to store the warped copy alike.
+        Only with ``with_info=True``: how the file stored it (mode,
+        metadata), for :func:`write_image` to store the warped copy alike.
 
     Raises
     ------
@@ -111,10 +117,16 @@ def read_image(
     >>> from importlib import resources
     >>> import fpiwarp
     >>> with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-    ...     image, info = fpiwarp.read_image(path)
+    ...     image = fpiwarp.read_image(path)
+    ...     _, info = fpiwarp.read_image(path, with_info=True)
     >>> image.shape, image.dtype.name, info.mode
     ((480, 640, 3), 'uint8', 'RGB')
     """
+    array, info = _read(path, orientation, max_pixels)
+    return (array, info) if with_info else array
+
+
+def _read(path, orientation, max_pixels):
     check_choice(orientation)
     path = Path(path)
     if path.is_dir():
@@ -168,7 +180,7 @@ def write_image(
     >>> import fpiwarp
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "ramp.png"
     >>> fpiwarp.write_image(path, np.arange(6, dtype=np.uint16).reshape(2, 3))
-    >>> fpiwarp.read_image(path)[0].tolist()
+    >>> fpiwarp.read_image(path).tolist()
     [[0, 1, 2], [3, 4, 5]]
     """
     array = np.asarray(array)

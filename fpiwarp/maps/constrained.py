@@ -39,7 +39,7 @@ from .mobius import Mobius, centered_at_zero, mobius_product
 from .quad import check_corners, check_quad_pair, parallelogram_mobius, signed_area
 from .rlinear import RLinear
 from .thin_plate_spline import ThinPlateSpline
-from .transform import Transform, chain
+from .transform import Transform, chain, distortion_from_wirtinger
 
 # --- Finding fold-over of a map over its region of interest (the source quad).
 #: Interior sampling: a GRID × GRID grid over the quad's bounding box.
@@ -213,6 +213,9 @@ ADAPT_MIX = 0.15
 #: one ConstrainedFPI refuses a fit by).
 ADAPT_CAPS = (None, 3.0, 2.0)
 PAPER = "paper's: 10 equally spread points, delta 0.01"
+#: The default spacing ("adaptive") keeps only fits whose constrained edges
+#: follow their similarities to this part of the edge length (see fit_spline).
+EDGE_BOUND = 1e-3
 
 
 def graded_spacing(k):
@@ -278,6 +281,7 @@ def offset_partners(kind, k):
 
 
 def _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, spacing):
+    k = len(spacing[0]) if spacing is not None else k  # the paper's fallback has fewer points
     pz = constraint_points(z, edges, kind, k, delta, spacing)
     pw = constraint_points(w, edges, kind, k, delta, spacing)
     tps = ThinPlateSpline.fit(m_src.map_complex(pz), m_dst.map_complex(pw))
@@ -285,8 +289,29 @@ def _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, spacing):
     return tps, pz, pw
 
 
-def _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap):
-    ts = [graded_spacing(k)] * 2
+def pin(t, pins):
+    """The edge parameters t with the nearest interior ones moved onto the
+    parameters ``pins`` (each in (0, 1)), so constraint points sit exactly
+    there; increasing, ends kept."""
+    t = np.array(t, dtype=np.float64)
+    free = list(range(1, len(t) - 1))
+    for p in sorted(pins, key=lambda p: -min(p, 1 - p)):
+        if not 1e-9 < p < 1 - 1e-9:
+            continue  # an end: always a point
+        if not free:
+            break
+        i = min(free, key=lambda i: abs(t[i] - p))
+        t[i] = p
+        free.remove(i)
+    return np.sort(t)
+
+
+def _pinned(ts, pins):
+    return ts if pins is None else [pin(t, p) for t, p in zip(ts, pins)]
+
+
+def _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap, pins=None):
+    ts = _pinned([graded_spacing(k)] * 2, pins)
     m_inv = m_dst.inverse
     for _ in range(ADAPT_PASSES):
         tps, _, _ = _fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, ts)
@@ -294,7 +319,7 @@ def _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap):
         def f(p, tps=tps):
             return m_inv.map_complex(tps.map_complex(m_src.map_complex(p)))
 
-        ts = [respace(t, edge_deviation(f, z, w, e, t), cap=cap) for e, t in zip(edges, ts)]
+        ts = _pinned([respace(t, edge_deviation(f, z, w, e, t), cap=cap) for e, t in zip(edges, ts)], pins)
     return ts
 
 
@@ -303,6 +328,11 @@ class _Composed:
 
     def __init__(self, m_src, tps, m_inv):
         self.parts = (m_src, tps, m_inv)
+
+    def map_complex(self, p):
+        for part in self.parts:
+            p = part.map_complex(p)
+        return p
 
     def wirtinger(self, p):
         w, fz, fzb = self.parts[0].wirtinger(p)
@@ -318,7 +348,7 @@ def folds(tps, m_src, m_dst, z):
         return worst_fold(_Composed(m_src, tps, m_dst.inverse), z) is not None
 
 
-def fit_spline(z, w, m_src, m_dst, edges, kind, k, delta, spacing="adaptive"):
+def fit_spline(z, w, m_src, m_dst, edges, kind, k, delta, spacing="adaptive", pins=None, segments=None):
     """phi, the constraint points on z and on w, the edge parameters used
     (one array per constrained edge) and the name of the spacing used, for
     counter-clockwise quads z, w.
@@ -332,8 +362,18 @@ def fit_spline(z, w, m_src, m_dst, edges, kind, k, delta, spacing="adaptive"):
     next to a strongly stretched or shrunk free edge; so where the result
     folds (:func:`folds`), the same is done with the density capped
     (ADAPT_CAPS), then the graded and the equal spacing, then the paper's
-    construction (at most 10 equally spread points, δ at least 0.01), and
-    the first that does not fold is kept (none: the uncapped one).
+    construction (at most 10 equally spread points, δ at least 0.01);
+    of these fits, those whose edges stray from their similarities by at
+    most EDGE_BOUND of the edge length (measured on 800 points per edge)
+    and that do not fold over are candidates, and the one of least maximal
+    conformal distortion (on the fold test's samples of z) is kept. None
+    within the bound: ConstraintError with the closest deviation; all
+    within it fold: the least distorted, which ConstrainedFPI refuses.
+    ``pins``: per constrained edge, edge parameters where a point must sit
+    (see :func:`pin`), or None; ``segments``: per constrained edge, parts
+    (t0, t1, factor) of it where the deviation is measured, times factor
+    (the fitted edge's length over the one the bound is relative to there),
+    or None: the whole edge, factor 1.
     """
     if spacing not in SPACINGS:
         raise ArgumentError(f"spacing must be one of {SPACINGS}, got {spacing!r}")
@@ -346,19 +386,59 @@ def fit_spline(z, w, m_src, m_dst, edges, kind, k, delta, spacing="adaptive"):
     else:
         tries = [
             ("adaptive" + (f", density capped at {cap:g}" if cap else ""),
-             lambda cap=cap: _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap))
+             lambda cap=cap: _adapt(z, w, m_src, m_dst, edges, kind, k, delta, cap, pins))
             for cap in ADAPT_CAPS
-        ] + [graded, uniform, (PAPER, lambda: [np.linspace(0.0, 1.0, min(k, 10))] * 2)]
-    first = None
+        ] + [graded, uniform]
+    if len(tries) == 1:
+        used, make = tries[0]
+        ts = _pinned(make(), pins)
+        return (*_fit_phi(z, w, m_src, m_dst, edges, kind, k, delta, ts), ts, used)
+    # The default: every spacing tried; among the fits that follow the
+    # edges to EDGE_BOUND and do not fold over, the least distorted.
+    samples = roi_samples(z)
+    fits = []
     for used, make in tries:
-        ts = make()
+        ts = _pinned(make(), pins)
         d = max(delta, 0.01) if used == PAPER else delta
         tps, pz, pw = _fit_phi(z, w, m_src, m_dst, edges, kind, k, d, ts)
-        if first is None:
-            first = (tps, pz, pw, ts, used)
-        if len(tries) == 1 or not folds(tps, m_src, m_dst, z):
-            return tps, pz, pw, ts, used
-    return first
+        comp = _Composed(m_src, tps, m_dst.inverse)
+        dev = max(
+            float(edge_deviation(comp.map_complex, z, w, e, np.linspace(t0, t1, 101)).max()) * scale
+            for e, parts in zip(edges, segments or ([(0.0, 1.0, 1.0)],) * 2)
+            for t0, t1, scale in parts
+        )
+        with np.errstate(all="ignore"):
+            _, fz, fzb = comp.wirtinger(samples)
+        kmax = float(np.max(distortion_from_wirtinger(fz, fzb)))
+        fits.append((dev, kmax, (tps, pz, pw, ts, used)))
+    within = sorted((f for f in fits if f[0] <= EDGE_BOUND), key=lambda f: f[1])
+    for _, _, fit in within:
+        if not folds(fit[0], m_src, m_dst, z):
+            return fit
+    # last resort, the paper's construction (at most 10 equal points, δ >= 0.01)
+    ts = _pinned([np.linspace(0.0, 1.0, min(k, 10))] * 2, pins)
+    paper = (*_fit_phi(z, w, m_src, m_dst, edges, kind, k, max(delta, 0.01), ts), ts, PAPER)
+    comp = _Composed(m_src, paper[0], m_dst.inverse)
+    dev = max(float(edge_deviation(comp.map_complex, z, w, e, np.linspace(t0, t1, 101)).max()) * scale
+              for e, parts in zip(edges, segments or ([(0.0, 1.0, 1.0)],) * 2) for t0, t1, scale in parts)
+    if dev <= EDGE_BOUND and not folds(paper[0], m_src, m_dst, z):
+        return paper
+    if not within:
+        best = min(f[0] for f in fits)
+        raise ConstraintError(
+            f"no spline of {k} points per edge follows the constrained edges' similarities to "
+            f"{EDGE_BOUND:g} of the edge length here: the closest strays by {best:.3g}; deform the "
+            'constrained edges less, or accept the deviation with spacing="graded" or "uniform"'
+        )
+    fold_free = [f for f in fits if not folds(f[2][0], m_src, m_dst, z)]
+    if fold_free:
+        best = min(f[0] for f in fold_free)
+        raise ConstraintError(
+            f"the splines that follow the constrained edges' similarities to {EDGE_BOUND:g} of the edge "
+            f"length fold over inside src; the closest one that does not strays by {best:.3g}: deform the "
+            'constrained edges less, or accept the deviation with spacing="graded" or "uniform"'
+        )
+    return within[0][2]  # every fit folds: ConstrainedFPI refuses it (FoldOverError, with where)
 
 
 # --- The constrained FPI f = m_W⁻¹ ∘ phi ∘ m_Z of paper §4.2 (Algorithm 3).
@@ -444,12 +524,26 @@ class ConstrainedFPI(Transform):
         closer and distorts less; the spline's weights grow like 1 / δ,
         which the block's paired terms carry to the kernels without the
         float32 cancellation plain terms would suffer.
+    pinned : None or two sequences of floats
+        Per constrained edge (in the order of the normalized ``edges``),
+        edge parameters t in [0, 1] where a constraint point must sit, so
+        the map meets the edge's similarity exactly at z_k + t (z_k+1 -
+        z_k) (:class:`~fpiwarp.LocalDeformation` pins the region of
+        interest's corners on its extended edges).
+    deviation_lengths : None or two floats
+        With ``pinned``: per constrained edge, the length the edge bound
+        (1e-3) is relative to between the outermost pins (the region of
+        interest's edge); elsewhere on the edge, and by default, it is
+        relative to the edge's own length in ``dst``.
     spacing : "adaptive", "graded" or "uniform"
         Where the K points sit along each edge. "adaptive" (default)
         re-spaces them from the measured deviation so it is about equal
-        between all neighbours (``fpiwarp.maps.constrained.fit_spline``),
-        falling back to plainer spacings where that would fold the map
-        over; "uniform" is the paper's equal spacing (the paper's
+        between all neighbours, also fits capped, graded, equal and the
+        paper's spacings, and keeps the least distorted fit whose edges
+        follow their similarities to 1e-3 of the edge length and that
+        does not fold over (``fpiwarp.maps.constrained.fit_spline``; none
+        within 1e-3: ConstraintError with the measured deviation);
+        "uniform" is the paper's equal spacing (the paper's
         construction: ``points_per_edge=10, delta=0.01,
         spacing="uniform"``). Measured over 320 random fold-free
         configurations (benchmarks/seams.py), deviation from the edges'
@@ -499,6 +593,8 @@ class ConstrainedFPI(Transform):
         points_per_edge: int | None = None,
         delta: float = 0.002,
         spacing: str = "adaptive",
+        pinned=None,
+        deviation_lengths=None,
     ):
         z, w, flip = check_quad_pair(src, dst)
         edges, kind = normalize_edges(edges)
@@ -512,7 +608,9 @@ class ConstrainedFPI(Transform):
         zs, ws = (np.conj(z), np.conj(w)) if flip else (z, w)
         m_src = parallelogram_mobius(zs)
         m_dst = parallelogram_mobius(ws)
-        tps, pz, pw, ts, used = fit_spline(zs, ws, m_src, m_dst, edges, kind, k, delta, spacing)
+        pins = _check_pins(pinned, k)
+        segments = _deviation_segments(w, edges, pins, deviation_lengths)
+        tps, pz, pw, ts, used = fit_spline(zs, ws, m_src, m_dst, edges, kind, k, delta, spacing, pins, segments)
         if flip:
             m_src, tps, m_dst = m_src.conjugated(), tps.conjugated(), m_dst.conjugated()
         self._init_parts(z, w, m_src, tps, m_dst.inverse)
@@ -637,6 +735,45 @@ def as_mobius(t):
 #: points_per_edge=None: the most whose constraint points the block holds as
 #: pairs (two rows each): 4 K rows for opposite edges, 4 K + 2 for adjacent ones.
 PAIRED_POINTS = {"opposite": MAX_CENTERS // 4, "adjacent": MAX_CENTERS // 4 - 1}
+
+
+def _deviation_segments(w, edges, pins, lengths):
+    """Where fit_spline measures the edge bound: per constrained edge the
+    whole edge, and between its outermost pins (if any) relative to
+    ``lengths`` (None: the whole edges only)."""
+    if lengths is None:
+        return None
+    try:
+        lengths = [float(v) for v in lengths]
+    except (TypeError, ValueError):
+        lengths = []
+    if len(lengths) != 2 or not all(np.isfinite(v) and v > 0 for v in lengths):
+        raise ConstraintError(f"deviation_lengths must be two positive lengths, got {lengths!r}")
+    out = []
+    for k, v, p in zip(edges, lengths, pins or ([], [])):
+        parts = [(0.0, 1.0, 1.0)]
+        if p:
+            parts.append((min(p), max(p), abs(w[(k + 1) % 4] - w[k]) / v))
+        out.append(parts)
+    return out
+
+
+def _check_pins(pinned, k):
+    """pinned: None, or two sequences of edge parameters in (0, 1), at most k - 2 each."""
+    if pinned is None:
+        return None
+    try:
+        pins = [[float(v) for v in p] for p in pinned]
+    except (TypeError, ValueError):
+        pins = None
+    if pins is None or len(pins) != 2 or not all(
+        len(p) <= k and all(np.isfinite(v) and 0 <= v <= 1 for v in p) for p in pins
+    ):
+        raise ConstraintError(
+            f"pinned must be two sequences (one per constrained edge) of at most {k} edge parameters "
+            f"in [0, 1], got {pinned!r}"
+        )
+    return pins
 
 
 def _check_points_per_edge(k, kind):

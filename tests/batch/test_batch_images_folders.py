@@ -150,8 +150,8 @@ def test_folder_batch_warps_every_image_and_names_failures(photos, tmp_path, fpi
     assert not summary.ok and summary.total == len(_good(photos)) + 2
     assert sorted(p.name for p in out.iterdir()) == _good(photos)
     for name in _good(photos):
-        image, info = io.read_image(photos / name)
-        warped, info_out = io.read_image(out / name)
+        image, info = io.read_image(photos / name, with_info=True)
+        warped, info_out = io.read_image(out / name, with_info=True)
         assert warped.dtype == image.dtype and warped.shape == image.shape and info_out.format == info.format
         if info.format != "JPEG":  # lossless formats: exactly warp_image's pixels
             np.testing.assert_array_equal(warped, fpiwarp.warp_image(image, fpi))
@@ -171,7 +171,7 @@ def test_rerun_resumes_and_overwrite_redoes(photos, tmp_path, fpi):
     (out / "a_rgb.png").write_bytes(b"stale")
     third = run_batch(fpi, photos, out, pattern="*.png", overwrite=True)
     assert sorted(third.done) == sorted(first.done)
-    assert io.read_image(out / "a_rgb.png")[0].shape == (H, W, 3)
+    assert io.read_image(out / "a_rgb.png").shape == (H, W, 3)
 
 
 def test_parallel_and_serial_runs_agree(photos, tmp_path, fpi):
@@ -185,8 +185,8 @@ def test_a_device_backend_batch_matches_its_warp_image(photos, tmp_path, fpi, gl
     summary = run_batch(fpi, photos, out, pattern="*.png", backend=gl_backend, jobs=2)
     assert len(summary.done) == 3 and [p for p, _ in summary.failed] == [str(photos / "x_corrupt.png")]
     for name in ("a_rgb.png", "c_rgba.png"):
-        expected = fpiwarp.warp_image(io.read_image(photos / name)[0], fpi, backend=gl_backend)
-        np.testing.assert_array_equal(io.read_image(out / name)[0], expected)
+        expected = fpiwarp.warp_image(io.read_image(photos / name), fpi, backend=gl_backend)
+        np.testing.assert_array_equal(io.read_image(out / name), expected)
 
 
 def test_output_folder_must_not_be_the_input(photos, fpi):
@@ -234,7 +234,7 @@ def test_interrupt_leaves_only_complete_outputs_and_a_rerun_finishes(tmp_path, r
     assert 2 <= len(written) < 8 and sorted(summary.done) == sorted(str(src / n) for n in written)
     for name in written:  # every file there is complete
         np.testing.assert_array_equal(
-            io.read_image(out / name)[0], fpiwarp.warp_image(io.read_image(src / name)[0], fpi)
+            io.read_image(out / name), fpiwarp.warp_image(io.read_image(src / name), fpi)
         )
     rest = run_batch(fpi, src, out)
     assert len(rest.done) == 8 - len(written) and len(rest.skipped) == len(written)

@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image, ImageCms, ImageOps
 
+import fpiwarp
 from fpiwarp.io import images as io
 from fpiwarp.io.images import ImageError, OutputExistsError, OutputIsFolderError, read_image, write_image
 
@@ -106,7 +107,7 @@ def test_png_round_trip_is_exact(tmp_path, rng, shape, dtype):
     _needs_extra(shape, dtype, "PNG")
     image = _random(shape, dtype, rng)
     write_image(tmp_path / "a.png", image)
-    back, info = read_image(tmp_path / "a.png")
+    back, info = read_image(tmp_path / "a.png", with_info=True)
     assert back.dtype == image.dtype and back.shape == image.shape
     np.testing.assert_array_equal(back, image)
     assert info.format == "PNG"
@@ -118,7 +119,7 @@ def test_png_reader_handles_every_row_filter(tmp_path, rng, channels, dtype):
     _needs_extra((1, 1, channels) if channels > 1 else (1, 1), dtype, "PNG")
     image = _random((11, 9, channels), dtype, rng)
     (tmp_path / "f.png").write_bytes(_png_with_every_filter(image, [(b"tEXt", b"Comment\0kept")]))
-    back, info = read_image(tmp_path / "f.png")
+    back, info = read_image(tmp_path / "f.png", with_info=True)
     assert back.dtype == image.dtype
     np.testing.assert_array_equal(back.reshape(image.shape), image)
     write_image(tmp_path / "g.png", back, info)
@@ -147,7 +148,7 @@ def test_interlaced_png_is_read(tmp_path, rng, dtype):
     _needs_extra((1, 1, 3), dtype, "PNG")
     image = _random((11, 13, 3), dtype, rng)
     (tmp_path / "i.png").write_bytes(_adam7_png(image))
-    np.testing.assert_array_equal(read_image(tmp_path / "i.png")[0], image)
+    np.testing.assert_array_equal(read_image(tmp_path / "i.png"), image)
 
 
 def test_other_readers_decode_our_png_alike(tmp_path, rng):
@@ -160,7 +161,7 @@ def test_other_readers_decode_our_png_alike(tmp_path, rng):
     write_image(tmp_path / "b.png", rgba16)
     from_cv2 = cv2.imread(str(tmp_path / "b.png"), cv2.IMREAD_UNCHANGED)
     np.testing.assert_array_equal(from_cv2[..., [2, 1, 0, 3]], rgba16)
-    np.testing.assert_array_equal(read_image(tmp_path / "b.png")[0], rgba16)
+    np.testing.assert_array_equal(read_image(tmp_path / "b.png"), rgba16)
 
 
 def test_16_bit_rgb_png_with_trns_stays_rgb_and_keeps_the_chunk(tmp_path, rng):
@@ -171,7 +172,7 @@ def test_16_bit_rgb_png_with_trns_stays_rgb_and_keeps_the_chunk(tmp_path, rng):
     image[0, 0] = (1, 2, 3)
     trns = (b"tRNS", struct.pack(">HHH", 1, 2, 3))
     (tmp_path / "t.png").write_bytes(_png_with_every_filter(image, [trns]))
-    back, info = read_image(tmp_path / "t.png")
+    back, info = read_image(tmp_path / "t.png", with_info=True)
     np.testing.assert_array_equal(back, image)
     write_image(tmp_path / "u.png", back, info)
     assert trns in io.png_chunks((tmp_path / "u.png").read_bytes(), "u.png")
@@ -194,7 +195,7 @@ def test_tiff_round_trip_is_exact(tmp_path, rng, shape, dtype):
     _needs_extra(shape, dtype, "TIFF")
     image = _random(shape, dtype, rng)
     write_image(tmp_path / "a.tif", image)
-    back, info = read_image(tmp_path / "a.tif")
+    back, info = read_image(tmp_path / "a.tif", with_info=True)
     assert info.format == "TIFF" and back.dtype == image.dtype
     np.testing.assert_array_equal(back, image)
 
@@ -204,7 +205,7 @@ def test_16_bit_color_tiff_from_another_writer_is_read_exactly(tmp_path, rng):
     cv2 = pytest.importorskip("cv2")
     image = _random((6, 7, 3), np.uint16, rng)
     cv2.imwrite(str(tmp_path / "deep.tif"), image[..., ::-1])
-    back, info = read_image(tmp_path / "deep.tif")
+    back, info = read_image(tmp_path / "deep.tif", with_info=True)
     np.testing.assert_array_equal(back, image)
     assert info.mode == "RGB;16"
 
@@ -224,9 +225,9 @@ def test_16_bit_color_tiff_keeps_lzw_compression_icc_and_dpi(tmp_path, rng):
         resolution=(300, 300),
         resolutionunit="INCH",
     )
-    back, info = read_image(tmp_path / "in.tif")
+    back, info = read_image(tmp_path / "in.tif", with_info=True)
     write_image(tmp_path / "out.tif", back, info)
-    again, info2 = read_image(tmp_path / "out.tif")
+    again, info2 = read_image(tmp_path / "out.tif", with_info=True)
     np.testing.assert_array_equal(again, image)
     assert info2.tiff_compression == "tiff_lzw" and info2.icc_profile == icc
     assert tuple(round(d) for d in info2.dpi) == (300, 300)
@@ -241,10 +242,10 @@ def test_jpeg_round_trip_keeps_layout_quality_and_icc_profile(tmp_path):
     y, x = np.mgrid[0:32, 0:48]
     smooth = np.stack([x * 5, y * 7, (x + y) * 3], axis=-1).astype(np.uint8)
     Image.fromarray(smooth).save(tmp_path / "in.jpg", quality=80, icc_profile=icc, dpi=(300, 300))
-    image, info = read_image(tmp_path / "in.jpg")
+    image, info = read_image(tmp_path / "in.jpg", with_info=True)
     assert image.shape == (32, 48, 3) and image.dtype == np.uint8 and info.icc_profile == icc
     write_image(tmp_path / "out.jpg", image, info)
-    again, info2 = read_image(tmp_path / "out.jpg")
+    again, info2 = read_image(tmp_path / "out.jpg", with_info=True)
     assert info2.icc_profile == icc
     assert info2.jpeg_qtables == info.jpeg_qtables  # the input's quality, not a default
     assert np.abs(again.astype(int) - image.astype(int)).max() <= 8
@@ -259,7 +260,7 @@ def test_icc_profile_and_dpi_are_kept_in_png_and_tiff(tmp_path, rng, name, dtype
     icc = ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes()
     info = io.ImageInfo(format="JPEG", mode="RGB", icc_profile=icc, dpi=(300.0, 300.0))
     write_image(tmp_path / name, _random((6, 5, 3), dtype, rng), info)
-    back = read_image(tmp_path / name)[1]
+    back = read_image(tmp_path / name, with_info=True)[1]
     assert back.icc_profile == icc and tuple(round(d) for d in back.dpi) == (300, 300)
 
 
@@ -268,7 +269,7 @@ def test_exif_is_kept(tmp_path, rng, name):
     exif = Image.Exif()
     exif[0x010F] = "fpiwarp test camera"  # Make
     Image.fromarray(_random((8, 10, 3), np.uint8, rng)).save(tmp_path / "in.jpg", exif=exif.tobytes())
-    image, info = read_image(tmp_path / "in.jpg")
+    image, info = read_image(tmp_path / "in.jpg", with_info=True)
     write_image(tmp_path / name, image, info)
     with Image.open(tmp_path / name) as im:
         assert im.getexif().get(0x010F) == "fpiwarp test camera"
@@ -279,7 +280,7 @@ def test_png_color_and_text_chunks_are_kept_only_where_still_true(tmp_path, rng)
     kept = [(b"gAMA", struct.pack(">I", 45455)), (b"sRGB", b"\0"), (b"zTXt", b"Note\0\0" + zlib.compress(b"hi"))]
     sbit = (b"sBIT", b"\x08\x08\x08")
     (tmp_path / "in.png").write_bytes(_png_with_every_filter(image, [*kept, sbit]))
-    back, info = read_image(tmp_path / "in.png")
+    back, info = read_image(tmp_path / "in.png", with_info=True)
     write_image(tmp_path / "same.png", back, info)
     chunks = io.png_chunks((tmp_path / "same.png").read_bytes(), "same.png")
     assert all(c in chunks for c in [*kept, sbit])
@@ -291,10 +292,10 @@ def test_png_color_and_text_chunks_are_kept_only_where_still_true(tmp_path, rng)
 def test_palette_and_bilevel_images_widen_to_rgb_and_gray(tmp_path, rng):
     rgb = _random((8, 8, 3), np.uint8, rng)
     Image.fromarray(rgb).convert("P").save(tmp_path / "p.png")
-    image, info = read_image(tmp_path / "p.png")
+    image, info = read_image(tmp_path / "p.png", with_info=True)
     assert image.shape == (8, 8, 3) and info.mode == "RGB"
     Image.fromarray(rgb[..., 0] > 128).save(tmp_path / "b.png")
-    image, _ = read_image(tmp_path / "b.png")
+    image = read_image(tmp_path / "b.png")
     assert image.dtype == np.uint8 and set(np.unique(image)) <= {0, 255}
 
 
@@ -348,7 +349,7 @@ def test_16_bit_color_without_the_io_extra_says_what_to_install(tmp_path, rng, w
         assert str(tmp_path) in message
     # 8-bit and 16-bit gray need only Pillow
     write_image(tmp_path / ("gray" + name), image[..., 0])
-    np.testing.assert_array_equal(read_image(tmp_path / ("gray" + name))[0], image[..., 0])
+    np.testing.assert_array_equal(read_image(tmp_path / ("gray" + name)), image[..., 0])
 
 
 def test_16_bit_gray_alpha_tiff_without_tifffile_says_what_to_install(tmp_path, rng, without):
@@ -471,7 +472,7 @@ def test_a_small_file_declaring_a_huge_size_is_refused_before_decoding(tmp_path,
 def test_the_pixel_limit_holds_for_every_codec(tmp_path, rng, name, shape, dtype):
     _needs_extra(shape, dtype, "PNG" if name.endswith(".png") else "TIFF")
     write_image(tmp_path / name, _random(shape, dtype, rng))
-    assert read_image(tmp_path / name, max_pixels=1200)[0].shape == shape
+    assert read_image(tmp_path / name, max_pixels=1200).shape == shape
     with pytest.raises(ImageError, match=r"40×30 = 1,200 pixels exceeds the limit of 1,199 pixels"):
         read_image(tmp_path / name, max_pixels=1199)
 
@@ -519,7 +520,7 @@ def test_every_small_layout_round_trips_exactly(tmp_path_factory, height, width,
     image = _random(shape, dtype, np.random.default_rng(seed))
     path = tmp_path_factory.mktemp("layout") / f"a{ext}"
     write_image(path, image)
-    back, _ = read_image(path)
+    back = read_image(path)
     assert back.dtype == image.dtype
     np.testing.assert_array_equal(back, image)
 
@@ -537,7 +538,7 @@ def test_an_ordinary_16_bit_rgb_png_reads_in_well_under_a_second(tmp_path):
     seconds = []
     for _ in range(3):  # the best of three: a shared machine's load is not the reader's
         start = time.perf_counter()
-        back, _ = read_image(path)
+        back = read_image(path)
         seconds.append(time.perf_counter() - start)
     np.testing.assert_array_equal(back, image)
     assert min(seconds) < 1.0, seconds
@@ -560,10 +561,10 @@ def test_orientation_is_applied_as_pillow_and_viewers_do(tmp_path, rng, orientat
     Image.fromarray(stored).save(tmp_path / "o.png", exif=_exif_with_orientation(orientation))
     with Image.open(tmp_path / "o.png") as im:
         expected = np.asarray(ImageOps.exif_transpose(im))
-    image, info = read_image(tmp_path / "o.png")
+    image, info = read_image(tmp_path / "o.png", with_info=True)
     np.testing.assert_array_equal(image, expected)
     assert info.orientation == 1
-    raw, raw_info = read_image(tmp_path / "o.png", orientation="stored")
+    raw, raw_info = read_image(tmp_path / "o.png", orientation="stored", with_info=True)
     np.testing.assert_array_equal(raw, stored)
     assert raw_info.orientation == orientation
 
@@ -573,7 +574,7 @@ def test_16_bit_png_orientation_is_applied_too(tmp_path, rng):
     stored = _random((5, 8, 3), np.uint16, rng)
     exif = (b"eXIf", _exif_with_orientation(6).removeprefix(b"Exif\0\0"))
     (tmp_path / "o.png").write_bytes(_png_with_every_filter(stored, [exif]))
-    image, info = read_image(tmp_path / "o.png")
+    image, info = read_image(tmp_path / "o.png", with_info=True)
     np.testing.assert_array_equal(image, np.rot90(stored, -1))
     write_image(tmp_path / "out.png", image, info)
     with Image.open(tmp_path / "out.png") as im:
@@ -584,8 +585,8 @@ def test_a_portrait_jpeg_is_read_as_shown_and_written_with_a_consistent_tag(tmp_
     """Orientation 6: stored 45 wide and 30 high, shown 30 wide and 45 high."""
     stored = np.repeat(np.repeat(_random((3, 5, 3), np.uint8, rng), 10, axis=0), 9, axis=1)
     Image.fromarray(stored).save(tmp_path / "in.jpg", quality=95, exif=_exif_with_orientation(6))
-    image, info = read_image(tmp_path / "in.jpg")
-    raw, raw_info = read_image(tmp_path / "in.jpg", orientation="stored")
+    image, info = read_image(tmp_path / "in.jpg", with_info=True)
+    raw, raw_info = read_image(tmp_path / "in.jpg", orientation="stored", with_info=True)
     assert image.shape == (45, 30, 3) and raw.shape == (30, 45, 3) and raw_info.orientation == 6
     np.testing.assert_array_equal(image, np.rot90(raw, -1))  # turned 90° clockwise
     assert np.median(np.abs(raw.astype(int) - stored)) < 3
@@ -614,16 +615,16 @@ def test_tiff_orientation_is_applied_or_kept_with_its_pixels(tmp_path, rng, dtyp
     tifffile = pytest.importorskip("tifffile")
     stored = _random((5, 8, 3), dtype, rng)
     tifffile.imwrite(tmp_path / "in.tif", stored, photometric="rgb", extratags=[(0x0112, "H", 1, orientation, True)])
-    image, info = read_image(tmp_path / "in.tif")
+    image, info = read_image(tmp_path / "in.tif", with_info=True)
     np.testing.assert_array_equal(image, turn(stored))
     write_image(tmp_path / "applied.tif", image, info)
     assert _tiff_orientation(tmp_path / "applied.tif") == 1
-    raw, raw_info = read_image(tmp_path / "in.tif", orientation="stored")
+    raw, raw_info = read_image(tmp_path / "in.tif", orientation="stored", with_info=True)
     np.testing.assert_array_equal(raw, stored)
     write_image(tmp_path / "stored.tif", raw, raw_info)
     assert _tiff_orientation(tmp_path / "stored.tif") == orientation
     write_image(tmp_path / "stored.png", raw, raw_info)  # into another format, the tag goes along
-    assert read_image(tmp_path / "stored.png", orientation="stored")[1].orientation == orientation
+    assert read_image(tmp_path / "stored.png", orientation="stored", with_info=True)[1].orientation == orientation
 
 
 def test_xmp_and_raw_profile_copies_of_the_tag_go_when_it_is_applied(tmp_path, rng):
@@ -633,7 +634,7 @@ def test_xmp_and_raw_profile_copies_of_the_tag_go_when_it_is_applied(tmp_path, r
     raw_profile = b"Raw profile type exif\0\nexif\n" + f"{len(exif):8}\n".encode() + exif.hex().encode() + b"\n"
     chunks = [(b"eXIf", exif), (b"iTXt", xmp), (b"tEXt", raw_profile)]
     (tmp_path / "in.png").write_bytes(_png_with_every_filter(stored, chunks))
-    image, info = read_image(tmp_path / "in.png")
+    image, info = read_image(tmp_path / "in.png", with_info=True)
     write_image(tmp_path / "out.png", image, info)
     kept = dict(io.png_chunks((tmp_path / "out.png").read_bytes(), "out.png")[1:-2])
     assert b"Orientation" not in kept[b"iTXt"] and b'tiff:Make="cam"' in kept[b"iTXt"]
@@ -646,7 +647,7 @@ def test_xmp_and_raw_profile_copies_of_the_tag_go_when_it_is_applied(tmp_path, r
 def test_unreadable_exif_does_not_stop_reading(tmp_path, rng):
     image = _random((6, 7, 3), np.uint8, rng)
     Image.fromarray(image).save(tmp_path / "a.png", exif=b"Exif\0\0MM\0*garbage")
-    back, info = read_image(tmp_path / "a.png")
+    back, info = read_image(tmp_path / "a.png", with_info=True)
     np.testing.assert_array_equal(back, image)
     assert info.orientation == 1
 
@@ -669,7 +670,7 @@ def test_existing_output_is_kept_without_overwrite(tmp_path, rng):
     assert path.read_bytes() == b"precious" and _leftovers(tmp_path) == []
     image = _random((4, 4), np.uint8, rng)
     write_image(path, image, overwrite=True)
-    np.testing.assert_array_equal(read_image(path)[0], image)
+    np.testing.assert_array_equal(read_image(path), image)
 
 
 @pytest.mark.parametrize("umask", [0o022, 0o027, 0o077])
@@ -782,3 +783,23 @@ def test_a_limit_raised_beyond_pillows_says_which_limit_refused(tmp_path):
     _jpeg_declaring(path, 60_000, 60_000)
     with pytest.raises(ImageError, match=r"huge.jpg: image of 3,600,000,000 pixels exceeds Pillow's limit"):
         read_image(path, max_pixels=10**10)
+
+
+@pytest.mark.parametrize("name", ["a.png", "a.jpg", "a.tif", "a.bmp", "a.webp"])
+def test_read_image_returns_the_pixels_like_its_peers_and_the_info_on_request(tmp_path, name):
+    """read_image(path) is the array (as imageio, skimage, cv2 and
+    np.asarray(Image.open(p)) give): warp_image(read_image(p), f) works;
+    with_info=True adds the metadata write_image keeps."""
+    from PIL import Image
+
+    image = (np.arange(6 * 5 * 3) % 251).astype(np.uint8).reshape(6, 5, 3)
+    write_image(tmp_path / name, image)
+    pixels = read_image(tmp_path / name)
+    assert isinstance(pixels, np.ndarray) and pixels.shape == (6, 5, 3)
+    with Image.open(tmp_path / name) as im:
+        np.testing.assert_array_equal(pixels, np.asarray(im.convert("RGB")))
+    again, info = read_image(tmp_path / name, with_info=True)
+    np.testing.assert_array_equal(again, pixels)
+    assert info.format and info.mode == "RGB"
+    fpiwarp.warp_image(read_image(tmp_path / name), fpiwarp.FPI([[0, 0], [4, 0], [4, 5], [0, 5]],
+                                                               [[0, 0], [4, 1], [4, 5], [0, 5]]))

@@ -2,7 +2,8 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given, reject, settings
+from hypothesis import strategies as st
 from support.constrained_cases import RECT, cplx, deformations, rotate_edge, similarity, size_of, xy
 
 import fpiwarp
@@ -11,6 +12,19 @@ from fpiwarp.block import evaluate
 from fpiwarp.metrics import grid
 
 CONVEX = deformations(convex=True)
+CONSTRUCTIONS = st.sampled_from(["continuous", "paper"])
+
+
+def build(src, dst, edges, construction):
+    """LocalDeformation, rejecting the configurations the continuous
+    construction refuses on purpose (lines meeting inside the extent, or
+    no spline within the edge bound over the extended edges)."""
+    try:
+        return LocalDeformation(src, dst, edges=edges, construction=construction)
+    except fpiwarp.ConstraintError as exc:
+        if construction == "continuous" and ("meet at" in str(exc) or "no spline" in str(exc)):
+            reject()
+        raise
 
 SETTINGS = settings(max_examples=30, deadline=None)
 
@@ -39,10 +53,10 @@ def across_edge(src, k, eps, n=21):
 
 
 @SETTINGS
-@given(CONVEX)
-def test_each_outer_region_follows_its_similarity_exactly(case):
+@given(CONVEX, CONSTRUCTIONS)
+def test_each_outer_region_follows_its_similarity_exactly(case, construction):
     src, dst, edges = case
-    f = LocalDeformation(src, dst, edges=edges)
+    f = build(src, dst, edges, construction)
     for k in f.edges:
         p = outward_points(src, k, 0.3)
         sim = similarity(src, dst, k)
@@ -54,10 +68,10 @@ def test_each_outer_region_follows_its_similarity_exactly(case):
 
 
 @SETTINGS
-@given(CONVEX)
-def test_continuous_across_the_constrained_edges(case):
+@given(CONVEX, CONSTRUCTIONS)
+def test_continuous_across_the_constrained_edges(case, construction):
     src, dst, edges = case
-    f = LocalDeformation(src, dst, edges=edges)
+    f = build(src, dst, edges, construction)
     for k in f.edges:
         inside, outside = across_edge(src, k, 1e-9 * size_of(src))
         jump = np.linalg.norm(f(inside) - f(outside), axis=1).max()
@@ -65,21 +79,21 @@ def test_continuous_across_the_constrained_edges(case):
 
 
 @SETTINGS
-@given(CONVEX)
-def test_inside_it_is_the_constrained_fpi(case):
+@given(CONVEX, CONSTRUCTIONS)
+def test_inside_it_is_the_constrained_fpi(case, construction):
     src, dst, edges = case
-    f = LocalDeformation(src, dst, edges=edges)
-    g = ConstrainedFPI(src, dst, edges=edges)
+    f = build(src, dst, edges, construction)
+    g = ConstrainedFPI(src, dst, edges=edges) if construction == "paper" else f.inner
     p = grid(src.mean(axis=0) + 0.95 * (src - src.mean(axis=0)), 9).reshape(-1, 2)
     assert np.array_equal(f(p), g(p))
     assert np.allclose(f(src), dst, atol=1e-9 * (size_of(dst) + np.abs(dst).max()))
 
 
 @SETTINGS
-@given(CONVEX)
-def test_inverse_round_trips(case):
+@given(CONVEX, CONSTRUCTIONS)
+def test_inverse_round_trips(case, construction):
     src, dst, edges = case
-    f = LocalDeformation(src, dst, edges=edges)
+    f = build(src, dst, edges, construction)
     inner = grid(src.mean(axis=0) + 0.9 * (src - src.mean(axis=0)), 9).reshape(-1, 2)
     outer = np.concatenate([outward_points(src, k, 0.2) for k in f.edges])
     for p in (inner, outer):
@@ -101,7 +115,7 @@ def test_adjacent_edges_share_one_similarity_beyond_both_lines():
 
 def test_a_quad_reaching_beyond_a_constrained_line_is_refused():
     dart = np.array([[0, 0], [4, 0], [2, 1], [2, 3]], float)  # not convex at point 2
-    with pytest.raises(ValueError, match="src point 1 lies beyond the line of constrained edge 2"):
+    with pytest.raises(fpiwarp.ConstraintError, match="src point 1 lies beyond the line of constrained edge 2"):
         LocalDeformation(dart, dart, edges=(0, 2))
     ConstrainedFPI(dart, dart, edges=(0, 2))  # the map itself is fine with it
 
@@ -110,7 +124,10 @@ def test_where_the_outer_half_planes_meet_the_deeper_one_wins():
     """Non-parallel opposite lines: beyond both, the larger depth decides."""
     src = np.array([[0, 0], [4, 0], [3, 2], [1, 2]], float)  # lines of edges 1, 3 meet above
     dst = rotate_edge(src, 1, 10)
-    f = LocalDeformation(src, dst, edges=(3, 1))
+    with pytest.raises(
+        fpiwarp.ConstraintError, match=r"lines of constrained edges 1 and 3 \(in src\) meet at \(2, 4\)"):
+        LocalDeformation(src, dst, edges=(3, 1))  # the similarities disagree there: no continuous map
+    f = LocalDeformation(src, dst, edges=(3, 1), construction="paper")
     s1, s3 = similarity(src, dst, 1), similarity(src, dst, 3)
     apex = np.array([[2.0, 4.0]])  # where the lines meet
     right = apex + [[0.5, 3.0]]  # beyond both lines, deeper beyond edge 1's line
@@ -122,10 +139,10 @@ def test_where_the_outer_half_planes_meet_the_deeper_one_wins():
 
 
 @SETTINGS
-@given(CONVEX)
-def test_block_evaluates_like_the_host(case):
+@given(CONVEX, CONSTRUCTIONS)
+def test_block_evaluates_like_the_host(case, construction):
     src, dst, edges = case
-    f = LocalDeformation(src, dst, edges=edges)
+    f = build(src, dst, edges, construction)
     c, s = src.mean(axis=0), size_of(src)
     p = grid([c - 2 * s, c + 2 * s], 25).reshape(-1, 2)
     host = f(p)
@@ -205,8 +222,10 @@ def test_every_backend_warps_a_compound_like_numpy(any_backend):
     ref = fpiwarp.warp_image(img, h, (72, 96))
     out = fpiwarp.warp_image(img, h, (72, 96), backend=any_backend)
     diff = np.abs(out.astype(int) - ref)
-    # float32 positions (~1e-4 px) flip the rounding of a few noisy pixels
-    assert diff.max() <= 1 and (diff > 0).mean() < 0.1
+    # float32 positions flip the rounding of a few noisy pixels: the continuous
+    # construction's spline spans the picture, its float32 Newton inverse
+    # lands within ~1e-2 px here (the paper's, over the ROI only: ~3e-3 px)
+    assert diff.max() <= 2 and (diff > 1).mean() < 0.002 and (diff > 0).mean() < 0.1
     # off the region lines, where float32 may pick the other side of a jump
     p = grid([[22.5, 21.5], [97.5, 58.5]], 8).reshape(-1, 2)
     assert np.allclose(fpiwarp.map_points(h, p, backend=any_backend), h(p), atol=1e-3)

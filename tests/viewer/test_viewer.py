@@ -99,7 +99,7 @@ def test_screenshot_without_overlay_is_the_warped_image(tmp_path, capsys, pictur
     src, dst = ",".join(str(v) for p in SRC for v in p), ",".join(str(v) for p in DST for v in p)
     code = main(["preview", str(path), "--src", src, "--dst", dst, "--screenshot", str(out), "--no-overlay"])
     assert code == 0, capsys.readouterr().err
-    frame, _ = io.read_image(out)
+    frame = io.read_image(out)
     _close(frame, fpiwarp.warp_image(picture, FPI(SRC, DST)))
 
 
@@ -108,7 +108,7 @@ def test_screenshot_of_a_spec_with_overlays(tmp_path, capsys, picture, gl_backen
     io.write_image(path, picture)
     fpiwarp.spec.save_spec(FPI(SRC, DST), spec)
     assert main(["preview", str(path), "--spec", str(spec), "--screenshot", str(out)]) == 0
-    frame, _ = io.read_image(out)
+    frame = io.read_image(out)
     assert frame.shape == (H, W, 3)
     plain = fpiwarp.warp_image(picture, FPI(SRC, DST))
     changed = np.any(frame != plain, axis=2)
@@ -327,7 +327,7 @@ def test_editor_constrains_edges_saves_and_exports(ctx, picture, tmp_path):
     assert isinstance(loaded, LocalDeformation) and loaded.edges == (0, 2)
     np.testing.assert_allclose(loaded.dst, ed.dst)
     exported = ed.export()
-    out, _ = io.read_image(exported)
+    out = io.read_image(exported)
     _close(out, fpiwarp.warp_image(picture, ed.transform), levels=1, fraction=0.998)
     r.release()
 
@@ -350,7 +350,8 @@ def test_viewer_loop_runs_headless(gl_backend, picture, tmp_path):
     # in a process of its own: the headless window makes its own context
     path, shot = tmp_path / "in.png", tmp_path / "frame.png"
     io.write_image(path, picture)
-    code = ("import sys, fpiwarp; from fpiwarp.viewer import run; img, info = fpiwarp.read_image(sys.argv[1]); "
+    code = ("import sys, fpiwarp; from fpiwarp.viewer import run; "
+            "img, info = fpiwarp.read_image(sys.argv[1], with_info=True); "
             "t = fpiwarp.FPI([[0, 0], [63, 0], [63, 47], [0, 47]], [[4, 3], [60, -2], [66, 50], [-3, 44]]); "
             "ed = run(img, t, window='headless', size=(320, 240), frames=2, screenshot=sys.argv[2]); "
             "print(ed.title())")
@@ -358,7 +359,7 @@ def test_viewer_loop_runs_headless(gl_backend, picture, tmp_path):
                           text=True, timeout=120, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert f"K = {FPI(SRC, DST).K:.4f}" in proc.stdout
-    frame, _ = io.read_image(shot)
+    frame = io.read_image(shot)
     assert frame.shape == (240, 320, 3)
     assert _has_handle(frame)
 
@@ -370,7 +371,7 @@ def _run_example(module, tmp_path, env=None):
                            "--screenshot", str(shot)], check=False, capture_output=True, text=True, timeout=120,
                           env={**os.environ, **(env or {})})
     assert proc.returncode == 0, proc.stderr[-2000:]
-    frame, _ = io.read_image(shot)
+    frame = io.read_image(shot)
     assert frame.shape == (720, 960, 3)
     assert _has_handle(frame)  # the handles are drawn
     assert np.mean(np.all(frame == frame[0, 0], axis=-1)) < 0.6  # the picture covers the middle
@@ -408,13 +409,14 @@ def test_viewer_opens_a_pyglet_window(gl_backend, tmp_path, xvfb, picture):
         pytest.skip("moderngl-window/pyglet not installed (pip install moderngl-window)")
     path, shot = tmp_path / "in.png", tmp_path / "shot.png"
     io.write_image(path, picture)
-    code = ("import sys, fpiwarp; from fpiwarp.viewer import run; img, info = fpiwarp.read_image(sys.argv[1]); "
+    code = ("import sys, fpiwarp; from fpiwarp.viewer import run; "
+            "img, info = fpiwarp.read_image(sys.argv[1], with_info=True); "
             "ed = run(img, info=info, frames=2, screenshot=sys.argv[2], size=(320, 240)); print(ed.title())")
     proc = subprocess.run([sys.executable, "-c", code, str(path), str(shot)], check=False, capture_output=True,
                           text=True, timeout=120, env={**os.environ, "DISPLAY": xvfb})
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "K = 1.0000" in proc.stdout  # the identity map to start with
-    frame, _ = io.read_image(shot)
+    frame = io.read_image(shot)
     assert frame.shape == (240, 320, 3) and _has_handle(frame)
 
 

@@ -5,7 +5,8 @@ thread where it is not current gives wrong pictures or crashes, never a
 clear error. So the backend's shared (headless) context belongs to the
 thread that first used the backend (the one that created the context,
 often through :func:`probe`); calls from any other thread are refused
-with a RuntimeError by :func:`check_thread`.
+with a ThreadOwnershipError (an FpiwarpError and a RuntimeError) by
+:func:`check_thread`; no context at all is a BackendUnavailableError.
 
 To move the backend to another thread, :func:`release_shared_context`
 in the owning thread frees the context (and everything drawn with it);
@@ -18,6 +19,8 @@ must release it first.
 import threading
 
 import moderngl
+
+from ...errors import BackendUnavailableError, ThreadOwnershipError
 
 #: GLSL version of the shader files; the context must provide at least this.
 GL_REQUIRE = 330
@@ -38,7 +41,7 @@ def create_context():
         except Exception as exc:  # noqa: BLE001 - each platform fails in its own way
             errors.append(f"{kwargs.get('backend', 'default')}: {exc}".strip())
     version = f"{GL_REQUIRE // 100}.{GL_REQUIRE % 100 // 10}"
-    raise RuntimeError(f"no OpenGL {version} context: " + "; ".join(errors))
+    raise BackendUnavailableError(f"no OpenGL {version} context: " + "; ".join(errors))
 
 
 def shared_context():
@@ -53,7 +56,7 @@ def shared_context():
                 _shared["ctx"] = None
                 _shared["error"] = str(exc)
         if _shared["ctx"] is None:
-            raise RuntimeError(_shared["error"])
+            raise BackendUnavailableError(_shared["error"])
         return _shared["ctx"]
 
 
@@ -69,7 +72,7 @@ def check_thread():
     would silently give wrong pictures."""
     owner = _shared.get("thread")
     if owner is not None and owner != threading.get_ident():
-        raise RuntimeError(
+        raise ThreadOwnershipError(
             "the gl backend's OpenGL context belongs to the thread that first used it; "
             "call the gl backend from that thread (e.g. the main thread), or call "
             "fpiwarp.backends.gl.release_shared_context() there to hand it over"
@@ -79,7 +82,7 @@ def check_thread():
 def claim_shared_context():
     """Make the calling thread the owner of the gl backend: create the
     shared context here unless this thread has it already. Raises
-    RuntimeError when another thread owns it (release it there first) or
+    ThreadOwnershipError when another thread owns it (release it there first) or
     when no context can be created. Returns the context."""
     check_thread()
     return shared_context()

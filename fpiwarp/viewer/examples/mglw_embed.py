@@ -51,7 +51,7 @@ def make_app():
         def __init__(self, **kwargs):
             super().__init__(**kwargs)
             with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-                image, _ = fpiwarp.read_image(path)
+                image = fpiwarp.read_image(path)
             self.renderer = Renderer(self.ctx, background=(0.15, 0.15, 0.17, 1.0))
             self.renderer.handles = self.renderer.outline = True
             self.editor = Editor(self.renderer, image, sample_map(image))

@@ -27,7 +27,7 @@ def _sample():
     from importlib import resources
 
     with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-        image, _ = fpiwarp.read_image(path)
+        image = fpiwarp.read_image(path)
     h, w = image.shape[:2]
     src = [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]]
     dst = [[0.1 * w, 0.08 * h], [0.92 * w, 0.0], [0.98 * w, 0.92 * h], [0.02 * w, 0.98 * h]]

@@ -329,7 +329,7 @@ def test_the_backend_can_be_handed_to_another_thread(gl):
 
     def worker():
         try:
-            with pytest.raises(RuntimeError, match="thread"):  # not yet released by the main thread
+            with pytest.raises(fpiwarp.ThreadOwnershipError, match="thread"):  # not yet released by the main thread
                 claim_shared_context()
             tried.set()
             released.wait(30)
@@ -356,9 +356,9 @@ def test_the_backend_can_be_handed_to_another_thread(gl):
         assert "error" not in seen, seen.get("error")
         assert seen["owner"]
         np.testing.assert_array_equal(seen["out"], want)
-        with pytest.raises(RuntimeError, match="thread"):
+        with pytest.raises(fpiwarp.ThreadOwnershipError, match="thread"):
             fpiwarp.warp_image(img, sample_fpi(), backend="gl")
-        with pytest.raises(RuntimeError, match="thread"):
+        with pytest.raises(fpiwarp.ThreadOwnershipError, match="thread"):
             release_shared_context()
     finally:
         released.set()
