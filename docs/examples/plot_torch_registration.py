@@ -25,7 +25,7 @@ import fpiwarp.torch as ft
 
 size = 64  # a small working resolution keeps the example fast
 with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-    photo, _ = fpiwarp.read_image(path)
+    photo = fpiwarp.read_image(path)
 image = torch.from_numpy(photo[..., :3].astype(np.float64) / 255).permute(2, 0, 1)[None]
 image = F.interpolate(image, size=(size, size), mode="area")
 

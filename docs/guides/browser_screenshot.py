@@ -22,7 +22,7 @@ OUT = Path(__file__).with_name("browser-editor.png")
 
 def main():
     path = resources.files("fpiwarp.data").joinpath("sample.png")
-    image, _ = fpiwarp.read_image(path)
+    image = fpiwarp.read_image(path)
     h, w = image.shape[:2]
     src = [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]]
     dst = [[0.06 * w, 0.04 * h], [0.9 * w, -0.05 * h], [1.04 * w, 1.02 * h], [-0.03 * w, 0.92 * h]]

@@ -28,7 +28,7 @@ def blur(x, sigma):
 def register(size, seed, steps=300):
     """Recover the target corners of a warped photo from a start up to 10% of the size off; (error px, K)."""
     with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:
-        photo, _ = fpiwarp.read_image(path)
+        photo = fpiwarp.read_image(path)
     img = torch.from_numpy(photo[..., :3].astype(np.float64) / 255).permute(2, 0, 1)[None]
     img = F.interpolate(img, size=(size, size), mode="area")
     s = size - 1.0

@@ -17,7 +17,7 @@ def test_web_screenshot_is_the_warped_picture(chromium, tmp_path, capsys):
     out = tmp_path / "exact.png"
     assert main(["preview", str(src), "--web", "--screenshot", str(out), "--no-overlay", "--dst", DST,
                  "--edges", "0,2"]) == 0
-    frame, _ = io.read_image(out)
+    frame = io.read_image(out)
     f = fpiwarp.LocalDeformation([[0, 0], [79, 0], [79, 59], [0, 59]], np.array(DST.split(","), float).reshape(4, 2),
                                  edges=(0, 2))
     ref = fpiwarp.warp_image(img, f, backend="numpy")
@@ -25,7 +25,7 @@ def test_web_screenshot_is_the_warped_picture(chromium, tmp_path, capsys):
     assert np.mean(np.abs(frame.astype(int) - ref).max(-1) <= 2) >= 0.99
     shot = tmp_path / "overlay.png"
     assert main(["preview", str(src), "--web", "--screenshot", str(shot), "--dst", DST]) == 0
-    frame, _ = io.read_image(shot)
+    frame = io.read_image(shot)
     yellow = (frame[..., 0] > 230) & (frame[..., 1] > 190) & (frame[..., 2] < 60)  # a handle's colour
     assert yellow.sum() > 20
     assert main(["preview", str(src), "--web", "--screenshot", str(shot), "--dst", DST]) == 1  # exists: kept

@@ -106,7 +106,7 @@ def test_s_and_e_save_the_spec_and_export_full_size(page, session, tmp_path):
     spec, out = tmp_path / "edit.spec.json", tmp_path / "edit-1.png"
     assert spec.exists() and out.exists() and (tmp_path / "edit.png").read_bytes() == b"not ours"
     assert isinstance(fpiwarp.load_spec(spec), FPI)
-    exported, _ = fpiwarp.read_image(out)
+    exported = fpiwarp.read_image(out)
     np.testing.assert_array_equal(exported, fpiwarp.warp_image(session.image, session.transform))
     assert "wrote" in _js(driver, "return document.querySelector('.fpw-status').textContent;")
 

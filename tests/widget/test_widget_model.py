@@ -71,7 +71,7 @@ def test_image_replaced_and_exported_at_full_size(tmp_path):
     assert (w._image_meta["width"], w._image_meta["height"]) == (2048, 95)  # shown downscaled
     assert len(w._image) == 2048 * 95 * 3
     path = w.export(tmp_path / "full.png", antialias=True)
-    out, _ = fpiwarp.read_image(path)
+    out = fpiwarp.read_image(path)
     assert out.shape == big.shape  # exported at full size
     np.testing.assert_array_equal(out, fpiwarp.warp_image(big, w.transform, antialias=True))
     with pytest.raises(fpiwarp.OutputExistsError):
