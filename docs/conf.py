@@ -5,11 +5,18 @@ No intersphinx: the build runs with no network, so cross-references point
 only inside this site.
 """
 
+import importlib.util
 import os
 import sys
 from pathlib import Path
 
-import fpiwarp
+# The gallery runs every example in this process: load Triton (PyPI's torch
+# brings it) before any example loads Mesa's LLVM through the gl backend, or
+# torch's lazy import of Triton crashes (see docs/guides/autodiff.rst).
+if importlib.util.find_spec("triton") is not None:
+    import triton  # noqa: F401
+
+import fpiwarp  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # benchmarks/ for the gallery's comparison methods

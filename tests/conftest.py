@@ -11,6 +11,7 @@ default) draws new random examples on every run, to keep searching; "ci"
 the draw. Falsifying examples that were found are pinned with @example.
 """
 
+import importlib.util
 import os
 
 import numpy as np
@@ -19,6 +20,14 @@ from hypothesis import settings
 from support.requirements import use_backend
 
 import fpiwarp
+
+# Triton (installed with PyPI's torch) bundles an LLVM whose static
+# initialisers crash the process when Mesa's LLVM (llvmpipe, the gl backend
+# here) was loaded first; loaded in the other order both work. torch imports
+# Triton lazily (e.g. torch.optim), after GL tests ran, so load it first.
+# See docs/guides/autodiff.rst, "Known conflicts".
+if importlib.util.find_spec("triton") is not None:
+    import triton  # noqa: F401
 
 settings.register_profile("dev", deadline=None)
 settings.register_profile("ci", deadline=None, derandomize=True, database=None, print_blob=True)
