@@ -3,15 +3,16 @@
 Small folds about a tenth of the quad's radius from a corner fall between
 the check's grid points; the samples next to them show a small positive
 Jacobian. These configurations were found by a random search and by
-hypothesis (tests/test_seams.py, seed 1): without the refinement the
-default fit was accepted and folds on a 200 x 200 grid with 1000 points per
-edge; with it the fit falls back to a spacing that does not fold.
+hypothesis (tests/maps/test_local_seams.py, seed 1): without the refinement the
+fit was accepted and folds on a 200 x 200 grid with 1000 points per edge;
+with it the fit is refused, and the default spacing moves on to one that
+does not fold (or refuses when every fit within the edge bound folds).
 """
 
 import numpy as np
 import pytest
 
-from fpiwarp import ConstrainedFPI
+from fpiwarp import ConstrainedFPI, ConstraintError, FoldOverError
 from fpiwarp.maps import constrained as _foldover
 from fpiwarp.maps.constrained import inside_quad, roi_samples, worst_fold
 
@@ -62,24 +63,39 @@ def dense_least_jacobian(f):
     return float(jac.min() / np.median(np.abs(jac)))
 
 
-@pytest.mark.parametrize("case", MISSED)
-def test_the_unrefined_check_accepts_a_fold_that_the_refined_one_finds(case, monkeypatch):
-    src, dst, edges = (np.array(case[0]), np.array(case[1]), case[2])
+def test_the_unrefined_check_accepts_a_fold_that_the_refined_one_finds(monkeypatch):
+    """MISSED[1] fitted with the graded spacing folds between the check's
+    grid points: accepted without the refinement, refused with it."""
+    src, dst, edges = (np.array(MISSED[1][0]), np.array(MISSED[1][1]), MISSED[1][2])
     with monkeypatch.context() as m:
         m.setattr(_foldover, "refine", lambda f, z, p, jac, cell: (p, jac))
-        unrefined = ConstrainedFPI(src, dst, edges=edges)
+        unrefined = ConstrainedFPI(src, dst, edges=edges, spacing="graded")
         assert worst_fold(unrefined, unrefined._z) is None
     assert dense_least_jacobian(unrefined) < 0
     point, rel = worst_fold(unrefined, unrefined._z)
     assert rel <= _foldover.FOLD_MARGIN and inside_quad(unrefined._z, np.array([point]))[0]
-    f = ConstrainedFPI(src, dst, edges=edges)
-    assert f.spacing_used != unrefined.spacing_used
+    with pytest.raises(FoldOverError):
+        ConstrainedFPI(src, dst, edges=edges, spacing="graded")
+
+
+@pytest.mark.parametrize("case", MISSED)
+def test_the_default_fit_never_folds(case):
+    """With the refinement, the default spacing gives a map that does not fold
+    on a dense sampling, or refuses (every fit within the edge bound folds)."""
+    src, dst, edges = (np.array(case[0]), np.array(case[1]), case[2])
+    try:
+        f = ConstrainedFPI(src, dst, edges=edges)
+    except ConstraintError as exc:
+        assert "fold over" in str(exc)
+        return
     assert dense_least_jacobian(f) > 0
 
 
 def test_refinement_adds_a_bounded_number_of_samples_inside_the_quad():
-    src, dst, edges = (np.array(c) if i < 2 else c for i, c in enumerate(MISSED[0]))
-    f = ConstrainedFPI(src, dst, edges=edges)
+    src, dst, edges = (np.array(c) if i < 2 else c for i, c in enumerate(MISSED[1]))
+    with pytest.MonkeyPatch.context() as m:  # the unrefined fit: a map that folds, to refine on
+        m.setattr(_foldover, "refine", lambda f, z, p, jac, cell: (p, jac))
+        f = ConstrainedFPI(src, dst, edges=edges, spacing="graded")
     z = f._z
     p = roi_samples(z)
     _, fz, fzb = f._wirtinger(p)
