@@ -33,7 +33,7 @@ side by side in one run (so ratios are meaningful on a noisy machine):
   1080p on llvmpipe).
 - ``warp_image overhead``: small FPI warps (64² and 256² uint8 RGB), where
   fixed costs per call dominate: each backend's plain ``warp_image``, and
-  the prepared form ``fpiwarp.Warper`` called on the image, beside
+  the prepared form ``fpiwarp.warping.Warper`` called on the image, beside
   ``cv2.remap`` with precomputed maps (the ratio baseline).
 
 Every implementation is called once outside the clock (warm-up: kernel

@@ -3,7 +3,7 @@
 The test suite and the benchmarks draw their quads and constrained
 configurations from here, so that a test that checks "the benchmark's
 configurations" checks exactly those, and a backend of your own can be
-tested on the same cases. Everything takes a :class:`numpy.random.Generator`
+tested on the same cases. Everything takes a ``numpy.random.Generator``
 (or a seed) and returns float64 ``(4, 2)`` arrays of ``(x, y)`` points; nothing
 here needs more than numpy.
 

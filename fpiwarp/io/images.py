@@ -72,9 +72,11 @@ def read_image(
 ) -> tuple[np.ndarray, ImageInfo]:
     """Read an image file; return ``(array, info)``.
 
-    8- and 16-bit PNG is decoded by fpiwarp itself; the other formats by
-    Pillow (a dependency); TIFFs Pillow cannot read (16-bit colour or
-    gray+alpha) need tifffile: ``pip install 'fpiwarp[io]'``.
+    Pillow (a dependency) decodes every format it knows; 16-bit colour
+    (gray+alpha, RGB, RGBA), which Pillow would reduce to 8 bits, goes
+    through imagecodecs (PNG) or tifffile (TIFF): ``pip install
+    'fpiwarp[io]'``. fpiwarp itself reads a PNG's chunk list (header and
+    CRCs checked before any pixel is decoded) to keep its metadata.
 
     Parameters
     ----------
