@@ -32,7 +32,9 @@ def test_digest_is_stable_and_sensitive():
 
 
 #: Source files by suffix: what the sdist must carry and the wheel must not lose.
-SOURCE_SUFFIXES = {".py", ".cl", ".h", ".glsl", ".vert", ".frag", ".json", ".png", ".md", ".typed"}
+SOURCE_SUFFIXES = {".py", ".cl", ".h", ".glsl", ".vert", ".frag", ".json", ".png", ".md", ".typed", ".rst"}
+#: What a docs build writes (never in the sdist).
+DOCS_BUILD = ["docs/_build", "docs/_generated", "docs/auto_examples", "docs/sg_execution_times.rst"]
 
 
 def _files(folder, skip=()):
@@ -82,12 +84,12 @@ def wheel(unpacked_sdist, tmp_path_factory):
 
 def test_sdist_carries_the_tests_and_what_they_need(sdist, unpacked_sdist):
     names = {p.relative_to(unpacked_sdist).as_posix() for p in unpacked_sdist.rglob("*") if p.is_file()}
-    expected = (_files("fpiwarp") | _files("kernels") | _files("glsl") | _files("tests")
-                | _files("benchmarks", skip=["benchmarks/results"]))
-    assert {"tests/conftest.py", "tests/support/__init__.py", "benchmarks/common.py"} <= expected
+    expected = (_files("fpiwarp") | _files("kernels") | _files("glsl") | _files("tests") | _files("benchmarks")
+                | _files("docs", skip=DOCS_BUILD))
+    assert {"tests/conftest.py", "tests/support/__init__.py", "benchmarks/common.py", "docs/conf.py"} <= expected
     assert expected <= names, sorted(expected - names)[:20]
     assert {"LICENSE", "README.md", "pyproject.toml", ".ci/run", "PKG-INFO"} <= names
-    assert not [n for n in names if "__pycache__" in n or n.startswith("benchmarks/results/")]
+    assert not [n for n in names if "__pycache__" in n or n.startswith(tuple(DOCS_BUILD))]
 
 
 def test_the_tests_run_from_the_unpacked_sdist(unpacked_sdist):
@@ -98,8 +100,9 @@ def test_the_tests_run_from_the_unpacked_sdist(unpacked_sdist):
     probe = subprocess.run([sys.executable, "-c", "import fpiwarp; print(fpiwarp.__file__)"], cwd=unpacked_sdist,
                            env=env, capture_output=True, text=True, check=True)
     assert Path(probe.stdout.strip()).resolve().is_relative_to(unpacked_sdist.resolve()), probe.stdout
-    sample = ["tests/package/test_structure.py", "tests/bench/test_benchmark_common.py", "tests/maps/test_quad_fuzz.py",
-              "tests/test_errors.py", "tests/block/test_block.py"]
+    sample = ["tests/package/test_structure.py", "tests/package/test_readme_links.py",
+              "tests/bench/test_benchmark_common.py", "tests/maps/test_quad_fuzz.py", "tests/test_errors.py",
+              "tests/block/test_block.py"]
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *sample],
                           cwd=unpacked_sdist, env=env, capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
