@@ -3,7 +3,8 @@
 Writes into DIR (default: benchmarks/results next to this file), with
 stable names so a rerun replaces the previous results:
 
-- machine.json: CPU, cores, load, library versions, backend devices;
+- machine.json: CPU model, ISA, PoCL device, cores, load, library
+  versions, backend devices (:func:`benchmarks.common.machine_facts`);
 - speed.md, speed.json, speed_scaling.png: times and ratios to the peers;
 - quality.md, quality.json, quality_fig8.png, quality_fig11.png: the
   §5.1 distortion table and the Fig. 8 / Fig. 11 pictures;
@@ -19,30 +20,14 @@ that exercises every code path; its numbers mean little.
 """
 
 import argparse
-import json
 import os
 import sys
 import time
 from pathlib import Path
 
-from . import antialias, arrays, batch_stacks, machine, quality, speed
-
-DEFAULT_OUT = Path(__file__).resolve().parent / "results"
-
-
-def _write(path, write):
-    """Write through a temporary file, so a crash leaves no half file."""
-    tmp = path.with_name(path.name + ".tmp")
-    write(tmp)
-    os.replace(tmp, path)
-
-
-def write_text(path, text):
-    _write(path, lambda p: p.write_text(text, encoding="utf-8"))
-
-
-def write_json(path, data):
-    write_text(path, json.dumps(data, indent=1, ensure_ascii=False, allow_nan=False) + "\n")
+from . import antialias, arrays, batch_stacks, quality, speed
+from .common import RESULTS as DEFAULT_OUT
+from .common import machine_facts, machine_markdown, write_file, write_json, write_text
 
 
 def parse_args(argv):
@@ -66,12 +51,12 @@ def main(argv=None):
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    info = machine.describe()
+    info = machine_facts()
     info["mode"] = "quick" if args.quick else "full"
-    machine_md = machine.markdown(info)
+    machine_md = machine_markdown(info)
+
     def log(msg):
         print(msg, flush=True)
-
 
     if args.only in (None, "speed"):
         import fpiwarp
@@ -89,7 +74,7 @@ def main(argv=None):
         write_json(out / "speed.json", {"machine": info, "results": speed.to_json(results)})
         from . import plots
 
-        _write(out / "speed_scaling.png", lambda p: plots.speed_scaling(results, p, dpi=50 if args.quick else 90))
+        write_file(out / "speed_scaling.png", lambda p: plots.speed_scaling(results, p, dpi=50 if args.quick else 90))
 
     if args.only in (None, "quality"):
         t0 = time.perf_counter()
@@ -104,9 +89,9 @@ def main(argv=None):
         from . import plots
 
         n, dpi = (16, 50) if args.quick else (64, 80)
-        _write(out / "quality_fig8.png", lambda p: plots.fig8(result, p, n=n, dpi=dpi))
+        write_file(out / "quality_fig8.png", lambda p: plots.fig8(result, p, n=n, dpi=dpi))
         if result.get("constrained"):
-            _write(out / "quality_fig11.png", lambda p: plots.fig11(result, p, n=n, dpi=dpi))
+            write_file(out / "quality_fig11.png", lambda p: plots.fig11(result, p, n=n, dpi=dpi))
 
     if args.only in (None, "antialias"):
         t0 = time.perf_counter()
@@ -114,7 +99,7 @@ def main(argv=None):
         info["antialias_wall_s"] = round(time.perf_counter() - t0, 1)
         write_text(out / "antialias.md", antialias.markdown(result, machine_md))
         write_json(out / "antialias.json", {"machine": info, **antialias.to_json(result)})
-        _write(out / "antialias_crops.png", lambda p: antialias.figure(result, p, dpi=50 if args.quick else 90))
+        write_file(out / "antialias_crops.png", lambda p: antialias.figure(result, p, dpi=50 if args.quick else 90))
 
     if args.only in (None, "arrays"):
         t0 = time.perf_counter()

@@ -21,23 +21,15 @@ the copies the CPU paths still make; the GPU figures come from
 ``benchmarks/gpu_arrays.py`` on a machine with one.
 """
 
-import statistics
-import time
-
 import numpy as np
 
 import fpiwarp
 from fpiwarp.backends import backend_status, get_backend
 
+from .common import frame_fpi, interleaved, medians
+
 SIZES = {"1080p": (1080, 1920), "4K": (2160, 3840)}
 QUICK_SIZES = {"256²": (256, 256)}
-
-
-def fpi_for(h, w):
-    """A generic FPI of a w×h frame (corners moved by a few percent)."""
-    s = w / 64.0
-    return fpiwarp.FPI([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]],
-                       [[4 * s, 3 * s], [w - 4 * s, -2 * s], [w + 3 * s, h + 2 * s], [-3 * s, h - 4 * s]])
 
 
 def _methods(backend, img, f):
@@ -80,17 +72,9 @@ def _methods(backend, img, f):
 
 
 def _time(methods, repeat):
-    times = {name: [] for name in methods}
-    for run, sync in methods.values():  # warm up: programs, kernels, buffers
-        run()
-        sync()
-    for _ in range(repeat):
-        for name, (run, sync) in methods.items():
-            t0 = time.perf_counter()
-            run()
-            sync()
-            times[name].append(time.perf_counter() - t0)
-    return {name: statistics.median(ts) for name, ts in times.items()}
+    """Median seconds of each (run, wait) pair, round-robin after a warm-up."""
+    times, _ = interleaved({name: (lambda r=run, s=sync: (r(), s())) for name, (run, sync) in methods.items()}, repeat)
+    return medians(times)
 
 
 def run(quick=False, backends=None, log=print):
@@ -103,7 +87,7 @@ def run(quick=False, backends=None, log=print):
     rng = np.random.default_rng(0)
     for label, (h, w) in sizes.items():
         img = rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8)
-        f = fpi_for(h, w)
+        f = frame_fpi(h, w)
         for backend in names:
             try:
                 medians = _time(_methods(backend, img, f), repeat)

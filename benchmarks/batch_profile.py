@@ -19,15 +19,14 @@ that device; ``batch - batch, device arrays`` is what the host stack costs
 """
 
 import argparse
-import time
 
 import numpy as np
 
 import fpiwarp
 from fpiwarp.backends import get_backend
 
-from .batch_stacks import FULL, QUICK, maps_for
-from .speed import test_image
+from .batch_stacks import FULL, QUICK
+from .common import bests, interleaved, machine_facts, machine_markdown, random_frame_maps, test_image
 
 PARTS = ("loop", "loop, device arrays", "kernels only", "batch", "batch, device arrays")
 
@@ -87,18 +86,11 @@ def run(quick=False, backends=("opencl", "warp"), log=print):
     n, h, w = sizes["stack"]
     rng = np.random.default_rng(1)
     stack = np.stack([test_image(h, w, "uint8", rng) for _ in range(n)])
-    maps = maps_for(n, h, w)
+    maps = random_frame_maps(n, h, w)
     rows = []
     for backend in [b for b in backends if b in fpiwarp.available_backends()]:
-        fns = parts(backend, stack, maps)
-        for fn in fns.values():
-            fn()  # warm-up: kernels compiled, buffers kept
-        best = dict.fromkeys(fns, float("inf"))
-        for _ in range(sizes["repeats"]):
-            for name, fn in fns.items():
-                t0 = time.perf_counter()
-                fn()
-                best[name] = min(best[name], time.perf_counter() - t0)
+        times, _ = interleaved(parts(backend, stack, maps), sizes["repeats"])  # warm-up: kernels compiled, buffers kept
+        best = bests(times)
         rows.append({"backend": backend, **best})
         log(f"{backend} {n}x{h}x{w}: " + ", ".join(f"{k} {v * 1e3:.0f} ms" for k, v in best.items()))
     return rows
@@ -106,7 +98,8 @@ def run(quick=False, backends=("opencl", "warp"), log=print):
 
 def markdown(rows):
     """A table of the parts and the two ratios that say what is left."""
-    lines = ["| backend | " + " | ".join(PARTS) + " | loop / kernels only | loop / batch |",
+    lines = [machine_markdown(machine_facts()), "",
+             "| backend | " + " | ".join(PARTS) + " | loop / kernels only | loop / batch |",
              "|---|" + "---:|" * (len(PARTS) + 2)]
     for r in rows:
         cells = " | ".join(f"{r[p] * 1e3:.0f} ms" for p in PARTS)

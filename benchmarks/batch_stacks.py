@@ -18,14 +18,13 @@ compare ratios within one run (loop and batch are timed in turn, the
 fastest of several calls each).
 """
 
-import time
 
 import numpy as np
 
 import fpiwarp
 from fpiwarp.backends import get_backend
 
-from .speed import test_image
+from .common import interleaved, random_frame_maps, test_image
 
 FULL = {"stack": (64, 512, 512), "frames": [(8, 1080, 1920), (4, 2160, 3840)], "repeats": 5}
 QUICK = {"stack": (8, 64, 64), "frames": [(2, 96, 128)], "repeats": 1}
@@ -39,32 +38,15 @@ HOW = {
 }
 
 
-def maps_for(n, height, width, seed=0):
-    """``n`` different FPIs of the frame: each corner moved by up to 4 %."""
-    rng = np.random.default_rng(seed)
-    w, h = width - 1.0, height - 1.0
-    src = np.array([[0, 0], [w, 0], [w, h], [0, h]])
-    return [fpiwarp.FPI(src, src + rng.uniform(-0.04, 0.04, (4, 2)) * [w, h]) for _ in range(n)]
+def _loop(stack, maps, backend):
+    return np.stack([fpiwarp.warp_image(im, t, backend=backend) for im, t in zip(stack, maps)])
 
 
 def paired(fns, repeats):
-    """[(seconds of the fastest call, last result)] for each of ``fns``, after
-    a warm-up of each, called in turn ``repeats`` times: on a shared,
-    loaded machine interleaving keeps a burst of load from landing on one
-    of them only."""
-    results = [fn() for fn in fns]
-    best = [None] * len(fns)
-    for _ in range(repeats):
-        for i, fn in enumerate(fns):
-            t0 = time.perf_counter()
-            results[i] = fn()
-            dt = time.perf_counter() - t0
-            best[i] = dt if best[i] is None else min(best[i], dt)
-    return list(zip(best, results, strict=True))
-
-
-def _loop(stack, maps, backend):
-    return np.stack([fpiwarp.warp_image(im, t, backend=backend) for im, t in zip(stack, maps)])
+    """[(seconds of the fastest call, last result)] for each of ``fns``, called
+    in rounds after a warm-up (:func:`benchmarks.common.interleaved`)."""
+    times, results = interleaved(dict(enumerate(fns)), repeats)
+    return [(min(times[i]), results[i]) for i in range(len(fns))]
 
 
 def run_maps(backends, sizes, log=print):
@@ -72,7 +54,7 @@ def run_maps(backends, sizes, log=print):
     n, h, w = sizes["stack"]
     rng = np.random.default_rng(1)
     stack = np.stack([test_image(h, w, "uint8", rng) for _ in range(n)])
-    maps = maps_for(n, h, w)
+    maps = random_frame_maps(n, h, w)
     rows = []
     for backend in backends:
         (loop_s, expected), (batch_s, got) = paired(
@@ -91,7 +73,7 @@ def run_frames(backends, sizes, log=print):
         rng = np.random.default_rng(2)
         frame = test_image(h, w, "uint8", rng)
         stack = np.stack([np.roll(frame, 7 * i, axis=1) for i in range(n)])
-        maps = maps_for(n, h, w, seed=3)
+        maps = random_frame_maps(n, h, w, seed=3)
         for backend in backends:
             (loop_s, _), (batch_s, _) = paired(
                 [lambda b=backend, s=stack, m=maps: _loop(s, m, b),
@@ -107,7 +89,7 @@ def run_transfers(sizes, log=print):
     n, h, w = sizes["stack"]
     rng = np.random.default_rng(1)
     stack = np.stack([test_image(h, w, "uint8", rng) for _ in range(n)])
-    maps = maps_for(n, h, w)
+    maps = random_frame_maps(n, h, w)
     backend = get_backend("opencl")
     cval = np.zeros(3)
     transfers = ("zero_copy", "serial", "pipelined")

@@ -86,13 +86,6 @@ def desktop_round(editor, renderer, ctx, fbo, n, method):
     return n / (time.perf_counter() - t0)
 
 
-def isa():
-    try:
-        flags = next(line for line in open("/proc/cpuinfo", encoding="utf-8") if line.startswith("flags")).split()
-    except (OSError, StopIteration):
-        return "unknown"
-    return "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "SSE"
-
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -100,7 +93,7 @@ def main(argv=None):
     parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "browser.md"))
     args = parser.parse_args(argv)
 
-    from benchmarks.machine import cpu_model, describe, markdown
+    from benchmarks.common import cpu_isa, cpu_model, machine_facts, machine_markdown
     from fpiwarp.backends import get_backend
     from fpiwarp.viewer import Editor, Renderer
     from fpiwarp.widget import browser
@@ -142,7 +135,7 @@ def main(argv=None):
     finally:
         driver.quit()
         fbo.release()
-    info = describe()
+    info = machine_facts()
     lines = [
         "# Dragging at 1080p: the browser page beside the desktop preview",
         "",
@@ -150,7 +143,7 @@ def main(argv=None):
         "1920×1080 RGB uint8 frame; medians of "
         f"{args.rounds} interleaved rounds (browser, desktop, desktop, ...), each frame finished on the GPU.",
         "",
-        f"CPU: {cpu_model()}, ISA {isa()}, {info['cores']} cores (shared with other work; load at start "
+        f"CPU: {cpu_model()}, ISA {cpu_isa()}, {info['cores']} cores (shared with other work; load at start "
         f"{info['load_average_1_5_15min'][0] if info['load_average_1_5_15min'] else '?'}).",
         "",
         f"Browser: Chromium {strings.get('browser')} headless, {strings.get('version')}, "
@@ -170,7 +163,7 @@ def main(argv=None):
         "the page always draws per pixel (WebGL2 has no clip distances for the mesh path's pole culling), "
         "so compare its drag with the desktop's per-pixel column for those.",
         "",
-        markdown(info),
+        machine_markdown(info),
         "",
     ]
     Path(args.out).write_text("\n".join(lines), encoding="utf-8")

@@ -22,7 +22,9 @@ import numpy as np
 
 import fpiwarp
 from fpiwarp.maps import constrained as _constrained
-from tests.support.quad_fuzz import random_quad
+from fpiwarp.testing import random_quad
+
+from .common import machine_facts, machine_line
 
 
 def strong_deformation(rng):
@@ -78,6 +80,7 @@ def main(argv=None):
             fit_s, check_s = fit_s + t1 - t0, check_s + t2 - t1
     dense, sparse = np.array(dense), np.array(sparse)
     folds = dense <= 0
+    print(machine_line(machine_facts(backends=False)))
     print(f"{len(dense)} fits, {folds.sum()} fold on the dense sampling")
     for margin in (0.0, 0.01, 0.02, 0.05, 0.1):
         refused = sparse <= margin

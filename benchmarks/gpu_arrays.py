@@ -33,7 +33,6 @@ by :mod:`benchmarks.gpu_batches` in the same run, into the same file.
 import argparse
 import statistics
 import sys
-import time
 import traceback
 from pathlib import Path
 
@@ -43,12 +42,8 @@ import fpiwarp
 from fpiwarp.backends import get_backend
 from fpiwarp.backends.nvwarp import backend as warp_backend
 
-try:  # python3 -m benchmarks.gpu_arrays
-    from . import gpu_batches
-    from .arrays import fpi_for
-except ImportError:  # python3 benchmarks/gpu_arrays.py
-    import gpu_batches
-    from arrays import fpi_for
+from . import gpu_batches
+from .common import frame_fpi, interleaved, machine_facts, machine_markdown
 
 RESULTS = []
 
@@ -103,7 +98,7 @@ def check_warp_cuda():
     if wp.get_cuda_device_count() == 0:
         raise _Skip("no CUDA device")
     img = _image()
-    f = fpi_for(*img.shape[:2])
+    f = frame_fpi(*img.shape[:2])
     ref = fpiwarp.warp_image(img, f, backend="warp")  # numpy in, numpy out on cuda:0
     arr = wp.array(img, device="cuda:0")
     out = wp.empty(img.shape, dtype=wp.uint8, device="cuda:0")
@@ -125,7 +120,7 @@ def check_torch():
         raise _Skip("torch without CUDA")
     wp = warp_backend.warp_module()
     img = _image()
-    f = fpi_for(*img.shape[:2])
+    f = frame_fpi(*img.shape[:2])
     ref = fpiwarp.warp_image(img, f, backend="warp")
     t = torch.from_numpy(img).cuda()
     assert wp.from_dlpack(t).ptr == t.data_ptr(), "wp.from_dlpack copied the tensor"
@@ -156,7 +151,7 @@ def check_torch():
 def check_cupy():
     cp = _library("cupy")
     img = _image()
-    f = fpi_for(*img.shape[:2])
+    f = frame_fpi(*img.shape[:2])
     ref = fpiwarp.warp_image(img, f, backend="warp")
     a = cp.asarray(img)
     out = cp.empty_like(a)
@@ -170,15 +165,8 @@ def check_cupy():
 
 
 def _median(run, sync, repeat):
-    run()
-    sync()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        run()
-        sync()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    times, _ = interleaved({"run": lambda: (run(), sync())}, repeat)
+    return statistics.median(times["run"])
 
 
 def _methods(wp, be, img, f):
@@ -213,7 +201,7 @@ def timings(sizes, repeat):
     rows = []
     for w, h in sizes:
         img = np.random.default_rng(0).integers(0, 256, size=(h, w, 3), dtype=np.uint8)
-        for name, (run, waiter) in _methods(wp, be, img, fpi_for(h, w)).items():
+        for name, (run, waiter) in _methods(wp, be, img, frame_fpi(h, w)).items():
             rows.append((f"{w}x{h}", name, _median(run, waiter, repeat)))
             print(rows[-1], flush=True)
     return rows
@@ -221,7 +209,8 @@ def timings(sizes, repeat):
 
 def markdown(rows):
     kernel = {size: s for size, name, s in rows if name.startswith("kernel only")}
-    lines = ["# Device arrays on the GPU (benchmarks/gpu_arrays.py)", "", "## Checks", "",
+    lines = ["# Device arrays on the GPU (benchmarks/gpu_arrays.py)", "", machine_markdown(machine_facts()), "",
+             "## Checks", "",
              "| check | result | detail |", "|---|---|---|"]
     lines += [f"| {n} | {r} | {d} |" for n, r, d in RESULTS]
     lines += ["", "## warp_image, uint8 RGB, bilinear, each frame waited for", "",

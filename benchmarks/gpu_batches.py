@@ -25,13 +25,14 @@ measured host-device copy bandwidth (target: ≥ 60 %), serial and pipelined.
 """
 
 import os
-import time
 
 import numpy as np
 
 import fpiwarp
 from fpiwarp.backends import get_backend
 from fpiwarp.backends.nvwarp import backend as warp_backend
+
+from .common import interleaved
 
 KINDS = ("fpi", "tps_inverse", "compound", "fpi")
 
@@ -227,15 +228,8 @@ CHECKS = {
 
 
 def _best(fn, sync, repeat):
-    fn()
-    sync()
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        sync()
-        best = min(best, time.perf_counter() - t0)
-    return best
+    times, _ = interleaved({"run": lambda: (fn(), sync())}, repeat)
+    return min(times["run"])
 
 
 def timings(repeat=5):

@@ -16,8 +16,6 @@ must accept them); the default is the backend's one-row width.
 """
 
 import argparse
-import statistics
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +23,7 @@ import numpy as np
 import fpiwarp
 from fpiwarp.block.codegen import opencl_preamble
 
-from .speed import corner_quads, test_image
+from .common import corner_quads, interleaved, machine_facts, machine_line, medians, remap_maps, test_image
 
 SIZES = {"256": (256, 256), "1k": (1024, 1024), "4k": (2160, 3840)}
 
@@ -79,8 +77,7 @@ def main(argv=None):
         local = tile or (local_x, 1)
         glob = (-(-w // local[0]) * local[0], -(-h // local[1]) * local[1])
         runs[label] = (kern, dst, glob, local)
-    maps = fpiwarp.source_positions(fpi, (h, w)).astype(np.float32)
-    map_x, map_y = np.ascontiguousarray(maps[..., 0]), np.ascontiguousarray(maps[..., 1])
+    map_x, map_y = remap_maps(fpi, (h, w))
 
     def launch(label):
         kern, _, glob, local = runs[label]
@@ -89,19 +86,14 @@ def main(argv=None):
 
     calls = {"old": lambda: launch("old"), "new": lambda: launch("new"),
              "cv2.remap": lambda: cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)}
-    for call in calls.values():
-        call()
+    times, _ = interleaved(calls, args.repeat * (50 if h * w <= 65536 else 1))
+    med = medians(times)
     outputs = {}
     for label, (_, dst, _, _) in runs.items():
         outputs[label] = np.empty_like(image)
         cl.enqueue_copy(be.queue, outputs[label], dst)
-    times = {name: [] for name in calls}
-    for _ in range(args.repeat * (50 if h * w <= 65536 else 1)):
-        for name, call in calls.items():
-            t0 = time.perf_counter()
-            call()
-            times[name].append(time.perf_counter() - t0)
-    med = {name: statistics.median(ts) for name, ts in times.items()}
+    print(machine_line(machine_facts(backends=False)))
+    print(f"OpenCL device: {be.device_label}")
     for name in ("old", "new"):
         differ = int(np.count_nonzero(outputs[name] != outputs["old"]))
         print(f"{name:4s} {med[name] * 1e3:9.3f} ms  {med[name] / med['old']:5.2f}x old  "

@@ -45,19 +45,19 @@ from fpiwarp import ConstrainedFPI, LocalDeformation
 from fpiwarp.block import evaluate
 from fpiwarp.maps.constrained import edge_similarity
 from fpiwarp.metrics import grid, jacobian_determinant
+from fpiwarp.testing import PAPER_CONSTRUCTION, UNIT_SQUARE, constrained_configurations
 
+from .common import RESULTS as DEFAULT_OUT
+from .common import machine_facts, machine_markdown, write_text
 from .seams_speed import backend_speed
 from .seams_speed import markdown as speed_markdown
-
-DEFAULT_OUT = Path(__file__).resolve().parent / "results"
-SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
 
 #: (label, ConstrainedFPI keywords); the first is the baseline, the old
 #: default (the paper's construction). PLAIN: the same map with its block
 #: packed as plain TPS terms (no pairs), to show what float32 loses then.
 PLAIN = "_plain"
 VARIANTS = [
-    ("before: 10 uniform, δ 0.01 (paper's, old default)", dict(points_per_edge=10, spacing="uniform", delta=0.01)),
+    ("before: 10 uniform, δ 0.01 (paper's, old default)", PAPER_CONSTRUCTION),
     ("16 graded, δ 0.01", dict(points_per_edge=16, spacing="graded", delta=0.01)),
     ("16 adaptive, δ 0.01 (old opt-in)", dict(points_per_edge=16, spacing="adaptive", delta=0.01)),
     ("16 adaptive, δ 0.004", dict(points_per_edge=16, spacing="adaptive", delta=0.004)),
@@ -72,20 +72,9 @@ def _c(a):
 
 
 def configurations(n, seed, grid_n):
-    rng = np.random.default_rng(seed)
-    out = []
-    while len(out) < n:
-        src = SQUARE + 0.3 * rng.standard_normal((4, 2))
-        dst = src + 0.3 * rng.standard_normal((4, 2))
-        edges = (0, 2) if rng.random() < 0.5 else (1, 3)
-        try:
-            f = ConstrainedFPI(src, dst, edges, **VARIANTS[0][1])
-            LocalDeformation(src, dst, edges, construction="paper", **VARIANTS[0][1])
-        except ValueError:
-            continue
-        if np.min(jacobian_determinant(f, grid(src, grid_n))) > 0:
-            out.append((src, dst, edges))
-    return out
+    """The seeded configurations (:func:`fpiwarp.testing.constrained_configurations`,
+    which tests/maps/test_local_seams.py checks too)."""
+    return constrained_configurations(n, seed, grid_n, construction=VARIANTS[0][1])
 
 
 def edge_deviation(f, src, dst, edges, n=401):
@@ -181,7 +170,7 @@ def measure(configs, kw, grid_n):
 
 def eval_speed(kw, n_points=1 << 15, repeats=3):
     """Host evaluation time of the forward map and its Newton inverse."""
-    src, dst = SQUARE, SQUARE + [[0.05, 0.02], [-0.03, 0.04], [0.1, -0.05], [0.0, 0.03]]
+    src, dst = UNIT_SQUARE, UNIT_SQUARE + [[0.05, 0.02], [-0.03, 0.04], [0.1, -0.05], [0.0, 0.03]]
     f = ConstrainedFPI(src, dst, (0, 2), **{k: v for k, v in kw.items() if k != PLAIN})
     rng = np.random.default_rng(0)
     pts = rng.uniform(-0.45, 0.45, (n_points, 2))
@@ -235,6 +224,8 @@ def markdown(result):
         f"{result['grid']}² grid over src; K ratio: per configuration, to the old default's "
         "(the paper's construction).",
         "",
+        machine_markdown(result["machine"]) if "machine" in result else "",
+        "",
         "| variant | centers | dev median | dev p90 | dev max | > 1e-3 | jump max | corner err "
         "| K max | K ratio median | p90 | max | > 1.01 | fold-overs | fit ms | ns/pt fwd | ns/pt inv |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
@@ -280,14 +271,15 @@ def main(argv=None):
     ap.add_argument("--no-backends", action="store_true", help="skip the per-backend speed table")
     args = ap.parse_args(argv)
     result = run(args.n, args.seed, args.grid)
+    result["machine"] = machine_facts()
     if not args.no_backends:
         result["backend_speed"] = backend_speed()
     args.out.mkdir(parents=True, exist_ok=True)
     text = markdown(result)
     if "backend_speed" in result:
         text += "\n" + speed_markdown(result["backend_speed"])
-    (args.out / "seams.md").write_text(text)
-    (args.out / "seams.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
+    write_text(args.out / "seams.md", text)
+    write_text(args.out / "seams.json", json.dumps(result, indent=1, default=float) + "\n")
 
 
 if __name__ == "__main__":

@@ -6,31 +6,22 @@ paired terms), measured side by side in one run (part of
 
 Per backend: map_points of 2^16 points and warp_image of a 256² RGB
 uint8 picture (order 1), forward map and, for map_points, its Newton
-inverse; best of ``repeats`` after one warm-up call (compiles), and the
+inverse; best of ``repeats`` rounds of both after one warm-up call of each (compiles), and the
 ratio default / old. Timings on a shared machine are noisy: read the
 ratios, not the absolute numbers.
 """
 
-import time
 
 import numpy as np
 
 import fpiwarp
 from fpiwarp import ConstrainedFPI
 
+from .common import bests, interleaved
+
 SRC = np.array([[40.0, 50.0], [210.0, 40.0], [220.0, 200.0], [30.0, 215.0]])
 DST = np.array([[45.0, 60.0], [205.0, 35.0], [236.0, 210.0], [25.0, 205.0]])
 OLD = dict(points_per_edge=10, delta=0.01, spacing="uniform")
-
-
-def _best(fn, repeats):
-    fn()  # warm-up: compiles the kind of map
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def backend_speed(repeats=3, n_points=1 << 16, size=256):
@@ -48,8 +39,8 @@ def backend_speed(repeats=3, n_points=1 << 16, size=256):
         }
         out[backend] = {}
         for case, run in cases.items():
-            old = _best(lambda run=run: run(maps["old"]), repeats)
-            new = _best(lambda run=run: run(maps["new"]), repeats)
+            times, _ = interleaved({m: (lambda run=run, f=f: run(f)) for m, f in maps.items()}, repeats)
+            old, new = bests(times)["old"], bests(times)["new"]
             out[backend][case] = dict(old_ms=1e3 * old, new_ms=1e3 * new, ratio=new / old)
     return out
 

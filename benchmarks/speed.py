@@ -18,6 +18,23 @@ side by side in one run (so ratios are meaningful on a noisy machine):
   skimage.transform.warp with ProjectiveTransform (the projective warp
   through the same corners), PiecewiseAffineTransform (an 8 × 8 mesh of
   the FPI) and ThinPlateSplineTransform (through the same corners).
+- ``warp_image local``: a ``LocalDeformation`` (edges 1 and 3 of a quad in
+  the middle of the frame: a Newton inverse of a paired thin-plate
+  spline inside, similarities beyond the two edges) and a ``ConstrainedFPI``
+  of the image corners (edges 0 and 2, Newton inverse everywhere) warped
+  per backend, uint8 RGB, beside the FPI warp of the same image on the same
+  backend. The ratio of a map's row is to **that backend's FPI warp**
+  (the target: a local deformation at most 2× the FPI); the FPI rows carry
+  their ratio to ``cv2.remap`` with precomputed maps. ``preview frame`` rows
+  (with the gl backend): one frame of the preview's exact picture
+  (:class:`fpiwarp.viewer.Renderer`, ``method="pixel"``) drawn into an
+  offscreen framebuffer and waited for, the map already uploaded: the FPI's
+  and the ``LocalDeformation``'s (target for the latter: at most 60 ms at
+  1080p on llvmpipe).
+- ``warp_image overhead``: small FPI warps (64² and 256² uint8 RGB), where
+  fixed costs per call dominate: each backend's plain ``warp_image``, and
+  the prepared form ``fpiwarp.warping.Warper`` called on the image, beside
+  ``cv2.remap`` with precomputed maps (the ratio baseline).
 
 Every implementation is called once outside the clock (warm-up: kernel
 builds, buffer allocation), then timed end to end: numpy array in, numpy
@@ -29,14 +46,16 @@ PiecewiseAffineTransform (O(pixels × triangles) in scikit-image) above
 1 megapixel.
 """
 
-import time
+import dataclasses
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 import fpiwarp
+from fpiwarp.warping import Warper
 
 from . import methods
+from .common import corner_quads, fmt_ratio, fmt_time, remap_call, size_label, test_image, time_call
 
 POINT_SIZES = [1_000, 10_000, 100_000, 1_000_000, 10_000_000]
 IMAGE_SIZES = [(256, 256), (512, 512), (1024, 1024), (1080, 1920), (2160, 3840)]
@@ -49,6 +68,15 @@ TPS_BASELINE = "skimage ThinPlateSplineTransform (same centers)"
 IMAGE_BASELINE = "cv2.remap (precomputed maps)"
 #: scikit-image's PiecewiseAffineTransform tests every pixel against every triangle.
 PIECEWISE_MAX_PIXELS = 1_100_000
+LOCAL_SIZES = [(1080, 1920), (2160, 3840)]
+QUICK_LOCAL_SIZES = [(96, 128)]
+OVERHEAD_SIZES = [(64, 64), (256, 256)]
+#: Repeats of one overhead measurement (within the settings' time budget):
+#: calls of 0.05-2 ms need hundreds for a best time that is not a first
+#: call's (cold caches, a driver's worker threads waking up); the image
+#: tables' 7 repeats read the 256² Warper 2-3x slower than it runs.
+OVERHEAD_REPEATS = 300
+LOCAL_MAPS = ("LocalDeformation", "ConstrainedFPI")
 
 
 @dataclass
@@ -77,72 +105,17 @@ class Settings:
     max_repeats: int = 7
     max_call_s: float = 12.0  # skip an implementation predicted slower than this per call
     backends: list | None = None  # None: every available backend
-    local_sizes: list = field(default_factory=list)  # benchmarks.speed_extra
+    local_sizes: list = field(default_factory=list)
     overhead_sizes: list = field(default_factory=list)
 
     @classmethod
     def quick(cls, backends=None):
-        from .speed_extra import OVERHEAD_SIZES, QUICK_LOCAL_SIZES
-
         return cls(QUICK_POINT_SIZES, QUICK_IMAGE_SIZES, budget_s=0.0, max_repeats=1, max_call_s=2.0, backends=backends,
                    local_sizes=QUICK_LOCAL_SIZES, overhead_sizes=OVERHEAD_SIZES[:1])
 
     @classmethod
     def full(cls, backends=None):
-        from .speed_extra import LOCAL_SIZES, OVERHEAD_SIZES
-
         return cls(POINT_SIZES, IMAGE_SIZES, backends=backends, local_sizes=LOCAL_SIZES, overhead_sizes=OVERHEAD_SIZES)
-
-
-def time_call(fn, budget_s, max_repeats, min_repeats=2, slow_s=4.0):
-    """Warm up once outside the clock, then best of repeats within ``budget_s``.
-
-    At least ``min_repeats`` timed calls (one if a call takes over
-    ``slow_s``), then more while the budget lasts, at most ``max_repeats``.
-    Returns (best seconds, all times).
-    """
-    t0 = time.perf_counter()
-    fn()
-    warm = time.perf_counter() - t0
-    times = []
-    spent = 0.0
-    while len(times) < max_repeats:
-        if times:
-            wanted = len(times) < min_repeats and max(warm, times[-1]) < slow_s
-            if not wanted and spent + min(times) > budget_s:
-                break
-        t0 = time.perf_counter()
-        fn()
-        dt = time.perf_counter() - t0
-        times.append(dt)
-        spent += dt
-    return min(times), times
-
-
-def corner_quads(height, width):
-    """Source quad (the image corners) and a generic target quad, in pixels.
-
-    The target moves every corner by 4-12 % of the size, so the FPI is
-    far from affine and its pole lies well outside the frame.
-    """
-    w, h = width - 1.0, height - 1.0
-    src = np.array([[0, 0], [w, 0], [w, h], [0, h]])
-    dst = np.array([[0.06 * w, 0.10 * h], [0.94 * w, 0.03 * h], [0.88 * w, 0.92 * h], [0.04 * w, 0.97 * h]])
-    return src, dst
-
-
-def test_image(height, width, dtype, rng):
-    """A smooth RGB image with some texture (values 0..255 or 0..1)."""
-    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
-    base = np.stack(
-        [0.5 + 0.5 * np.sin(x / 17.0), 0.5 + 0.5 * np.cos(y / 23.0), ((x // 32 + y // 32) % 2).astype(np.float32)],
-        axis=-1,
-    )
-    base += 0.05 * rng.standard_normal(base.shape, dtype=np.float32)
-    base = np.clip(base, 0, 1)
-    if dtype == "uint8":
-        return (base * 255 + 0.5).astype(np.uint8)
-    return base.astype(np.float32)
 
 
 def _skimage_warp(image, inverse_map, shape):
@@ -174,18 +147,13 @@ def image_implementations(image, transform, src, dst, backends):
             lambda name=name: fpiwarp.warp_image(image, transform, shape, order=1, mode="constant", backend=name),
         )
     inverse = transform.inverse
-    maps = fpiwarp.source_positions(transform, shape).astype(np.float32)
-    map_x, map_y = np.ascontiguousarray(maps[..., 0]), np.ascontiguousarray(maps[..., 1])
-
-    def remap_precomputed():
-        return cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
     def numpy_maps_remap():
         m = fpiwarp.source_positions(transform, shape).astype(np.float32)
         return cv2.remap(image, m[..., 0], m[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
     homography = cv2.getPerspectiveTransform(src.astype(np.float32), dst.astype(np.float32))
-    impls[IMAGE_BASELINE] = ("peer", remap_precomputed)
+    impls[IMAGE_BASELINE] = ("peer", remap_call(image, transform))
     impls["numpy maps + cv2.remap"] = ("peer", numpy_maps_remap)
     impls["cv2.warpPerspective (PROJ)"] = (
         "peer",
@@ -323,10 +291,8 @@ def run(settings, log=print):
             log(f"warp_image {dtype:7s} {label:>9s}: " + _brief(rows))
             del image, impls
 
-    from . import speed_extra
-
-    results += speed_extra.run_overhead(settings.overhead_sizes, settings, backends, rng, log)
-    results += speed_extra.run_local(settings.local_sizes, settings, backends, rng, log)
+    results += run_overhead(settings.overhead_sizes, settings, backends, rng, log)
+    results += run_local(settings.local_sizes, settings, backends, rng, log)
     return results
 
 
@@ -341,20 +307,6 @@ def _brief(rows):
 # ---------------------------------------------------------------- reporting
 
 
-def _fmt_time(s):
-    if s is None:
-        return "–"
-    if s < 1e-3:
-        return f"{s * 1e6:.0f} µs"
-    if s < 1:
-        return f"{s * 1e3:.1f} ms"
-    return f"{s:.2f} s"
-
-
-def _fmt_ratio(r):
-    return "–" if r is None else (f"{r:.2f}×" if r < 10 else f"{r:.0f}×")
-
-
 def table(results, workload, dtype, what="both"):
     """Markdown table: one row per implementation, one column per size.
 
@@ -364,7 +316,7 @@ def table(results, workload, dtype, what="both"):
     sizes = list(dict.fromkeys(r.size for r in rows))
     impls = list(dict.fromkeys(r.impl for r in rows))
     cell = {(r.impl, r.size): r for r in rows}
-    head = "| implementation | " + " | ".join(_size_label(s) for s in sizes) + " |"
+    head = "| implementation | " + " | ".join(size_label(s) for s in sizes) + " |"
     lines = [head, "|---|" + "---:|" * len(sizes)]
     for impl in impls:
         cells = []
@@ -373,21 +325,13 @@ def table(results, workload, dtype, what="both"):
             if r is None or r.seconds is None:
                 cells.append("skipped" if r is not None and r.note.startswith("skipped") else ("error" if r else "–"))
             elif what == "time":
-                cells.append(_fmt_time(r.seconds))
+                cells.append(fmt_time(r.seconds))
             elif what == "ratio":
-                cells.append(_fmt_ratio(r.ratio))
+                cells.append(fmt_ratio(r.ratio))
             else:
-                cells.append(f"{_fmt_time(r.seconds)} ({_fmt_ratio(r.ratio)})")
+                cells.append(f"{fmt_time(r.seconds)} ({fmt_ratio(r.ratio)})")
         lines.append(f"| {impl} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
-
-
-def _size_label(size):
-    if "x" in size:
-        h, w = size.split("x")
-        return f"{w}×{h}"
-    n = int(size)
-    return f"{n // 1_000_000}M pts" if n >= 1_000_000 else f"{n // 1000}K pts"
 
 
 def headline(results):
@@ -402,7 +346,7 @@ def headline(results):
         rows = [r for r in results if r.workload == workload and r.dtype == dtype]
         if rows:
             size = max(rows, key=lambda r: r.n).size
-            columns.append((f"{title}, {_size_label(size)}", {r.impl: r for r in rows if r.size == size}))
+            columns.append((f"{title}, {size_label(size)}", {r.impl: r for r in rows if r.size == size}))
     impls = list(dict.fromkeys(impl for _, cells in columns for impl in cells))
     lines = ["| implementation | " + " | ".join(t for t, _ in columns) + " |", "|---|" + "---:|" * len(columns)]
     for impl in impls:
@@ -412,7 +356,7 @@ def headline(results):
             cells.append(
                 ""
                 if r is None
-                else ("skipped" if r.seconds is None else f"{_fmt_time(r.seconds)} ({_fmt_ratio(r.ratio)})")
+                else ("skipped" if r.seconds is None else f"{fmt_time(r.seconds)} ({fmt_ratio(r.ratio)})")
             )
         lines.append(f"| {impl} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -423,7 +367,7 @@ def notes(results):
     seen = {}
     for r in results:
         if r.note:
-            seen.setdefault((r.impl, r.note), []).append(f"{r.workload} {r.dtype} {_size_label(r.size)}")
+            seen.setdefault((r.impl, r.note), []).append(f"{r.workload} {r.dtype} {size_label(r.size)}")
     return [f"- {impl} ({', '.join(where)}): {note}" for (impl, note), where in seen.items()]
 
 
@@ -461,13 +405,139 @@ def markdown(results, settings, machine_md):
         ]
     for dtype in settings.dtypes:
         parts += ["", f"## warp_image, {dtype} RGB", "", table(results, "warp_image", dtype)]
-    from .speed_extra import markdown_parts
-
-    parts += markdown_parts(results)
+    parts += local_markdown_parts(results)
     extra = notes(results)
     if extra:
         parts += ["", "## Notes", ""] + extra
     return "\n".join(parts) + "\n"
+
+
+# ---------------------------------------------------------------- local deformations, per-call overhead
+
+
+def local_deformation(height, width):
+    """Edges 1 and 3 of a quad over the middle fifth of the frame held to
+    similarities; its corners moved by 2-6 % of the size."""
+    w, h = width - 1.0, height - 1.0
+    src = np.array([[0.4 * w, 0.3 * h], [0.6 * w, 0.3 * h], [0.6 * w, 0.7 * h], [0.4 * w, 0.7 * h]])
+    dst = src + np.array([[0.02 * w, -0.05 * h], [0.03 * w, 0.02 * h], [-0.02 * w, 0.06 * h], [0.01 * w, -0.03 * h]])
+    return fpiwarp.LocalDeformation(src, dst, edges=(1, 3))
+
+
+def constrained_fpi(height, width):
+    src, dst = corner_quads(height, width)
+    return fpiwarp.ConstrainedFPI(src, dst, edges=(0, 2))
+
+
+def _warp(image, transform, name):
+    return lambda: fpiwarp.warp_image(image, transform, order=1, mode="constant", backend=name)
+
+
+def _preview_frame(image, transform):
+    """One exact preview frame (Renderer, method "pixel") of ``transform``
+    into an offscreen framebuffer, waited for; the objects live as long as
+    the returned callable."""
+    from fpiwarp.backends import get_backend
+    from fpiwarp.viewer import Renderer
+
+    ctx = get_backend("gl").warper.ctx
+    height, width = image.shape[:2]
+    renderer = Renderer(ctx, order=1, warper=get_backend("gl").warper, method="pixel")
+    tex = ctx.texture((width, height), 4, dtype="f1")
+    fbo = ctx.framebuffer(color_attachments=[tex])
+    renderer.set_image(image)
+    renderer.set_transform(transform)
+
+    def frame():
+        fbo.use()
+        renderer.draw((0, 0, width, height), y_down=True)
+        ctx.finish()
+
+    frame.keep = (renderer, tex, fbo)
+    return frame
+
+
+def run_local(sizes, settings, backends, rng, log=print):
+    """``warp_image local`` rows: each map per backend, ratio to its FPI."""
+    results, last = [], {}
+    for height, width in sizes:
+        image = test_image(height, width, "uint8", rng)
+        fpi = fpiwarp.FPI(*corner_quads(height, width))
+        maps = {"LocalDeformation": local_deformation(height, width), "ConstrainedFPI": constrained_fpi(height, width)}
+        impls = {IMAGE_BASELINE: ("peer", remap_call(image, fpi))}
+        for name in backends:
+            impls[f"fpiwarp {name} FPI"] = ("backend", _warp(image, fpi, name))
+            for label, transform in maps.items():
+                impls[f"fpiwarp {name} {label}"] = ("backend", _warp(image, transform, name))
+        if "gl" in backends:
+            impls["fpiwarp gl preview frame FPI"] = ("backend", _preview_frame(image, fpi))
+            impls["fpiwarp gl preview frame LocalDeformation"] = (
+                "backend", _preview_frame(image, maps["LocalDeformation"]))
+        label = f"{height}x{width}"
+        rows = _measure("warp_image local", label, height * width, "uint8", impls, settings, last)
+        _add_ratios(rows, IMAGE_BASELINE)
+        for name in backends:
+            fpi_row = rows[f"fpiwarp {name} FPI"]
+            for m in LOCAL_MAPS:
+                row = rows[f"fpiwarp {name} {m}"]
+                row.ratio = row.seconds / fpi_row.seconds if row.seconds and fpi_row.seconds else None
+        if "gl" in backends:
+            fpi_row, row = rows["fpiwarp gl preview frame FPI"], rows["fpiwarp gl preview frame LocalDeformation"]
+            row.ratio = row.seconds / fpi_row.seconds if row.seconds and fpi_row.seconds else None
+        results.extend(rows.values())
+        log(f"warp_image local {label:>9s}: " + _brief(rows))
+    return results
+
+
+def run_overhead(sizes, settings, backends, rng, log=print):
+    """``warp_image overhead`` rows: plain call and Warper per backend."""
+    if settings.max_repeats > 1:  # not the quick smoke run
+        settings = dataclasses.replace(settings, max_repeats=max(settings.max_repeats, OVERHEAD_REPEATS))
+    results, last = [], {}
+    for height, width in sizes:
+        image = test_image(height, width, "uint8", rng)
+        fpi = fpiwarp.FPI(*corner_quads(height, width))
+        impls = {IMAGE_BASELINE: ("peer", remap_call(image, fpi))}
+        for name in backends:
+            impls[f"fpiwarp {name}"] = ("backend", _warp(image, fpi, name))
+            warper = Warper(fpi, order=1, mode="constant", backend=name)
+            impls[f"fpiwarp {name} Warper"] = ("backend", lambda warper=warper, image=image: warper(image))
+        label = f"{height}x{width}"
+        rows = _measure("warp_image overhead", label, height * width, "uint8", impls, settings, last)
+        _add_ratios(rows, IMAGE_BASELINE)
+        results.extend(rows.values())
+        log(f"warp_image overhead {label:>9s}: " + _brief(rows))
+    return results
+
+
+def local_markdown_parts(results):
+    """The sections of speed.md for these workloads (empty when not run)."""
+    parts = []
+    if any(r.workload == "warp_image local" for r in results):
+        parts += [
+            "",
+            "## warp_image, local deformations (uint8 RGB)",
+            "",
+            "A `LocalDeformation` (edges 1 and 3 of a quad over the middle of the frame) and a `ConstrainedFPI`",
+            "(edges 0 and 2 of the image corners): Newton inverses of a thin-plate spline of 31 center pairs",
+            "per pixel, seeded from the block's table of exact inverses.",
+            "Their ratio is to **the FPI warp on the same backend** (target: at most 2×); the FPI rows'",
+            f"ratio is to `{IMAGE_BASELINE}`. The `gl preview frame` rows: one exact frame of the preview",
+            "(`fpiwarp.viewer.Renderer`, method \"pixel\", offscreen, waited for; target for the local",
+            "deformation at 1080p: at most 60 ms), the LocalDeformation's ratio to the FPI's frame.",
+            "",
+            table(results, "warp_image local", "uint8"),
+        ]
+    if any(r.workload == "warp_image overhead" for r in results):
+        parts += [
+            "",
+            "## warp_image, per-call overhead (small FPI warps, uint8 RGB)",
+            "",
+            f"Plain `warp_image` and the prepared `fpiwarp.warping.Warper`; ratios to `{IMAGE_BASELINE}`.",
+            "",
+            table(results, "warp_image overhead", "uint8"),
+        ]
+    return parts
 
 
 def to_json(results):

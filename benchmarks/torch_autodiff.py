@@ -25,24 +25,10 @@ import torch
 import fpiwarp
 import fpiwarp.torch as ft
 
-from .machine import cpu_model
+from .common import cpu_isa, cpu_model
 
 RESULTS = Path(__file__).resolve().parent / "results" / "torch_autodiff.md"
 
-
-def isa():
-    """The widest x86 vector extension the CPU reports, and the one PyTorch dispatches to."""
-    flags = set()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("flags"):
-                    flags = set(line.split(":", 1)[1].split())
-                    break
-    except OSError:
-        pass
-    widest = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else platform.machine()
-    return f"{widest} (PyTorch CPU capability: {torch.backends.cpu.get_cpu_capability()})"
 
 
 def corners(size, batch, seed=0):
@@ -128,7 +114,7 @@ def report(ms, size, batch, rounds, prof):
     lines = [
         "# fpiwarp.torch: forward + backward on the CPU",
         "",
-        f"Machine: {cpu_model()}, {torch.get_num_threads()} PyTorch threads, ISA {isa()}, "
+        f"Machine: {cpu_model()}, {torch.get_num_threads()} PyTorch threads, ISA {cpu_isa()}, "
         f"{platform.system()} {platform.release()}, Python {platform.python_version()}; load average "
         f"{os.getloadavg()[0]:.1f} at the end (other work on the machine slows fpiwarp's many short passes "
         "more than one fused grid_sample kernel: compare ratios of runs at similar load).",

@@ -2,7 +2,7 @@
 Warping a folder of images
 ==========================
 
-One map, many files: :func:`fpiwarp.batch.folders.run_batch` (the
+One map, many files: :func:`fpiwarp.batch.run_batch` (the
 ``fpiwarp batch`` command) warps every image of a folder into another
 folder, keeping each file's name, format, bit depth and metadata. Outputs
 that exist are skipped, so a rerun resumes. The map comes from a JSON spec
@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import fpiwarp
-from fpiwarp.batch.folders import run_batch
+from fpiwarp.batch import run_batch
 from fpiwarp.spec import save_spec
 
 with resources.as_file(resources.files("fpiwarp.data") / "sample.png") as path:

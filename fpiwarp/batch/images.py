@@ -92,7 +92,7 @@ def warp_images(
     See Also
     --------
     warp_batch : a stack in one call.
-    fpiwarp.batch.folders.run_batch : a folder of files into another.
+    fpiwarp.batch.run_batch : a folder of files into another.
 
     Examples
     --------

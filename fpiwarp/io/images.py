@@ -75,9 +75,11 @@ def read_image(
     """Read an image file; return its pixels (with ``with_info=True``:
     ``(pixels, info)``, the metadata to write a warped copy alike).
 
-    8- and 16-bit PNG is decoded by fpiwarp itself; the other formats by
-    Pillow (a dependency); TIFFs Pillow cannot read (16-bit colour or
-    gray+alpha) need tifffile: ``pip install 'fpiwarp[io]'``.
+    Pillow (a dependency) decodes every format it knows; 16-bit colour
+    (gray+alpha, RGB, RGBA), which Pillow would reduce to 8 bits, goes
+    through imagecodecs (PNG) or tifffile (TIFF): ``pip install
+    'fpiwarp[io]'``. fpiwarp itself reads a PNG's chunk list (header and
+    CRCs checked before any pixel is decoded) to keep its metadata.
 
     Parameters
     ----------

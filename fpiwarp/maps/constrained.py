@@ -30,6 +30,8 @@ ends the free corner's edges. The same rule on W gives the target of
 each offset point.
 """
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -593,8 +595,8 @@ class ConstrainedFPI(Transform):
         points_per_edge: int | None = None,
         delta: float = 0.002,
         spacing: str = "adaptive",
-        pinned=None,
-        deviation_lengths=None,
+        pinned: tuple[Sequence[float], Sequence[float]] | None = None,
+        deviation_lengths: tuple[float, float] | None = None,
     ):
         z, w, flip = check_quad_pair(src, dst)
         edges, kind = normalize_edges(edges)

@@ -258,6 +258,7 @@ def test_quick_run_speed_results_are_well_formed(quick_run):
 
     data = json.loads((quick_run / "speed.json").read_text())
     assert data["machine"]["cores"] >= 1 and data["machine"]["libraries"]["numpy"]
+    assert data["machine"]["cpu"] and data["machine"]["isa"] and data["machine"]["pocl_device"]
     rows = data["results"]
     impls = {r["impl"] for r in rows}
     for name in set(fpiwarp.available_backends()) | required_backends():
@@ -273,6 +274,15 @@ def test_quick_run_speed_results_are_well_formed(quick_run):
     assert {r["dtype"] for r in rows if r["workload"] == "warp_image"} == {"uint8", "float32"}
     md = (quick_run / "speed.md").read_text()
     assert "| fpiwarp numpy |" in md and "## warp_image, uint8 RGB" in md
+
+
+def test_every_quick_run_table_names_the_machine_kind(quick_run):
+    """CPU model, ISA and PoCL device head every results table: figures of an
+    AVX2 and an AVX-512 machine must not be mixed unawares."""
+    facts = json.loads((quick_run / "machine.json").read_text())
+    for name in ("speed.md", "quality.md", "antialias.md", "batch.md", "arrays.md"):
+        text = (quick_run / name).read_text()
+        assert f"{facts['cpu']} ({facts['isa']}), PoCL device {facts['pocl_device']}" in text, name
 
 
 def test_quick_run_quality_table_has_constant_fpi_dilation(quick_run):

@@ -16,10 +16,11 @@ import fpiwarp
 from fpiwarp import ConstrainedFPI, LocalDeformation, RLinear
 from fpiwarp.maps.constrained import graded_spacing, normalize_edges, respace
 from fpiwarp.metrics import grid, jacobian_determinant
+from fpiwarp.testing import PAPER_CONSTRUCTION, UNIT_SQUARE, constrained_configurations
 
 EDGE_BOUND = 1e-3
-SQUARE = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
-PAPER = dict(points_per_edge=10, spacing="uniform", delta=0.01)  # the paper's construction, the old default
+SQUARE = UNIT_SQUARE
+PAPER = PAPER_CONSTRUCTION  # the paper's construction, the old default
 NEW = dict()  # the defaults: adaptive spacing, δ 0.002, 16 points per opposite edge
 SETTINGS = settings(max_examples=40, deadline=None)
 
@@ -62,27 +63,9 @@ def edge_deviation(f, src, dst, k, n=401):
     return np.abs(cplx(f(xy(p))) - (w[k] + a * (p - z[k]))).max() / abs(w[(k + 1) % 4] - w[k])
 
 
-def seeded_configurations(n, seed):
-    """benchmarks/seams.py's configurations (the same generator and seed)."""
-    rng = np.random.default_rng(seed)
-    out = []
-    while len(out) < n:
-        src = SQUARE + 0.3 * rng.standard_normal((4, 2))
-        dst = src + 0.3 * rng.standard_normal((4, 2))
-        edges = (0, 2) if rng.random() < 0.5 else (1, 3)
-        try:
-            paper = ConstrainedFPI(src, dst, edges, **PAPER)
-            LocalDeformation(src, dst, edges, construction="paper", **PAPER)
-        except ValueError:
-            continue
-        if np.min(jacobian_determinant(paper, grid(src, 41))) > 0:
-            out.append((src, dst, edges))
-    return out
-
-
 def test_constrained_edges_follow_their_similarity_to_1e_3_on_the_benchmark_configurations():
     """The first 80 of the benchmark's 320 (all 320: see benchmarks/results/seams.md)."""
-    for src, dst, edges in seeded_configurations(80, seed=16):
+    for src, dst, edges in constrained_configurations(80, seed=16):
         f = ConstrainedFPI(src, dst, edges, **NEW)
         for k in edges:
             assert edge_deviation(f, src, dst, k) <= EDGE_BOUND
@@ -150,7 +133,7 @@ def local_jump(src, dst, edges):
 
 
 def test_local_deformation_jumps_less_than_1e_3_on_the_benchmark_configurations():
-    for src, dst, edges in seeded_configurations(40, seed=16):
+    for src, dst, edges in constrained_configurations(40, seed=16):
         assert local_jump(src, dst, edges) <= EDGE_BOUND
 
 
@@ -315,7 +298,7 @@ def test_lines_across_a_constrained_edge_stay_straight_within_half_a_pixel_on_wa
     if case == "issue":
         src, dst, edges = ISSUE_SRC, ISSUE_DST, (0, 2)
     else:
-        src, dst, edges = seeded_configurations(2, seed=16)[case]
+        src, dst, edges = constrained_configurations(2, seed=16)[case]
     for k in normalize_edges(edges)[0]:
         assert _line_steps(src, dst, edges, k, NEW).max() <= 0.5
     if case == "issue":

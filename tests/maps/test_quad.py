@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from support.quad_fuzz import allowed_error, mirrored, mirrored_pairs, unit_pairs
+from support.quad_fuzz import allowed_error
 from support.strategies import orient_like, quads
 
 import fpiwarp
 from fpiwarp import FPI, ConstrainedFPI, DegenerateQuadError, IllConditionedPairError, LocalDeformation
 from fpiwarp.curves import curve_map, fpi_curve
 from fpiwarp.maps.quad import EXACT_RTOL, MAX_COORDINATE, MAX_K, check_quad, signed_area
+from fpiwarp.testing import mirrored, mirrored_pairs, unit_pairs
 
 SQ = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 D = np.array([[0.0, 0.0], [2.0, 0.1], [1.9, 1.2], [-0.1, 1.0]])

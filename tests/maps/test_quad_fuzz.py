@@ -5,7 +5,9 @@ the documented tolerance; mirrored pairs are all refused."""
 
 import numpy as np
 import pytest
-from support.quad_fuzz import broad_pairs, classify, mirrored_pairs, tally, unit_pairs
+from support.quad_fuzz import classify, tally
+
+from fpiwarp.testing import broad_pairs, mirrored_pairs, unit_pairs
 
 
 @pytest.mark.parametrize("seed", [0, 1])

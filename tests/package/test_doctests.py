@@ -13,7 +13,7 @@ from support.requirements import use_backend
 MODULES = [
     "maps.fpi", "maps.rlinear", "maps.mobius", "maps.thin_plate_spline", "maps.constrained", "maps.local",
     "warping", "maps.transform", "errors", "batch.images", "batch.folders", "batch.points", "sampling.positions",
-    "io.images", "backends", "curves", "metrics", "spec", "backends.lru",
+    "io.images", "backends", "curves", "metrics", "spec", "backends.lru", "testing",
 ]
 GL_MODULES = ["viewer.offscreen", "viewer.renderer"]
 

@@ -1,4 +1,6 @@
-"""Kernel and shader sources ship in the wheel and load through one loader."""
+"""Packaging: the sdist carries the tests and runs them, the wheel carries the
+package with its kernels, shaders, data and py.typed and no tests, and the
+kernel and shader sources load through one loader."""
 
 import subprocess
 import sys
@@ -32,16 +34,105 @@ def test_digest_is_stable_and_sensitive():
     assert resources.digest("a", "b") != resources.digest("ab")
 
 
+#: Source files by suffix: what the sdist must carry and the wheel must not lose.
+PACKAGED_SUFFIXES = {".py", ".cl", ".h", ".glsl", ".vert", ".frag", ".json", ".png", ".md", ".typed", ".rst"}
+#: What a docs build writes (never in the sdist).
+DOCS_BUILD = ["docs/_build", "docs/_generated", "docs/auto_examples", "docs/sg_execution_times.rst"]
+
+
+def _files(folder, skip=()):
+    """Relative posix paths of the source files under ``folder`` (no caches)."""
+    return {p.relative_to(ROOT).as_posix() for p in (ROOT / folder).rglob("*")
+            if p.is_file() and p.suffix in PACKAGED_SUFFIXES and "__pycache__" not in p.parts
+            and not any(p.is_relative_to(ROOT / s) for s in skip)}
+
+
 @pytest.fixture(scope="module")
-def wheel(tmp_path_factory):
+def sdist(tmp_path_factory):
+    """The source distribution, built by setuptools' PEP 517 backend in this tree."""
+    out = tmp_path_factory.mktemp("sdist")
+    code = "import sys; from setuptools import build_meta; print(build_meta.build_sdist(sys.argv[1]))"
+    done = subprocess.run([sys.executable, "-c", code, str(out)], cwd=ROOT, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    (path,) = out.glob("fpiwarp-*.tar.gz")
+    return path
+
+
+@pytest.fixture(scope="module")
+def unpacked_sdist(sdist, tmp_path_factory):
+    import tarfile
+
+    out = tmp_path_factory.mktemp("unpacked")
+    with tarfile.open(sdist) as tar:
+        tar.extractall(out, filter="data")
+    (root,) = out.iterdir()
+    return root
+
+
+@pytest.fixture(scope="module")
+def wheel(unpacked_sdist, tmp_path_factory):
+    """The wheel, built from the unpacked sdist as ``python -m build`` does
+    (so the sdist must carry all the wheel needs, and no stale build/ of the
+    checkout can slip into it)."""
     out = tmp_path_factory.mktemp("wheel")
-    subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(out), str(ROOT)],
-        check=True,
-        capture_output=True,
+    done = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(out),
+         str(unpacked_sdist)],
+        capture_output=True, text=True,
     )
+    assert done.returncode == 0, done.stderr[-3000:]
     (path,) = out.glob("fpiwarp-*.whl")
     return path
+
+
+def test_sdist_carries_the_tests_and_what_they_need(sdist, unpacked_sdist):
+    names = {p.relative_to(unpacked_sdist).as_posix() for p in unpacked_sdist.rglob("*") if p.is_file()}
+    expected = (_files("fpiwarp") | _files("kernels") | _files("glsl") | _files("tests") | _files("benchmarks")
+                | _files("docs", skip=DOCS_BUILD))
+    assert {"tests/conftest.py", "tests/support/__init__.py", "benchmarks/common.py", "docs/conf.py"} <= expected
+    assert expected <= names, sorted(expected - names)[:20]
+    assert {"LICENSE", "README.md", "pyproject.toml", ".ci/run", "PKG-INFO"} <= names
+    assert not [n for n in names if "__pycache__" in n or n.startswith(tuple(DOCS_BUILD))]
+
+
+def test_the_tests_run_from_the_unpacked_sdist(unpacked_sdist):
+    """A sample of the suite that leans on conftest.py, tests/support, the
+    benchmarks and the package's own files, run inside the unpacked sdist
+    against the package there (not this checkout)."""
+    env = {**__import__("os").environ, "PYTHONPATH": str(unpacked_sdist)}
+    probe = subprocess.run([sys.executable, "-c", "import fpiwarp; print(fpiwarp.__file__)"], cwd=unpacked_sdist,
+                           env=env, capture_output=True, text=True, check=True)
+    assert Path(probe.stdout.strip()).resolve().is_relative_to(unpacked_sdist.resolve()), probe.stdout
+    sample = ["tests/package/test_structure.py", "tests/package/test_readme_links.py",
+              "tests/bench/test_benchmark_common.py", "tests/maps/test_quad_fuzz.py", "tests/test_errors.py",
+              "tests/block/test_block.py"]
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *sample],
+                          cwd=unpacked_sdist, env=env, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+    assert " passed" in done.stdout and " error" not in done.stdout
+
+
+def test_wheel_has_the_package_and_its_files_and_no_tests(wheel):
+    names = set(zipfile.ZipFile(wheel).namelist())
+    package = {n for n in _files("fpiwarp") if not n.endswith(".md")}
+    assert package <= names, sorted(package - names)[:20]  # every subpackage listed in pyproject.toml
+    assert "fpiwarp/py.typed" in names
+    assert not [n for n in names if n.startswith(("tests/", "benchmarks/", "docs/")) or "/tests/" in n]
+    assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
+    top = {n.split("/")[0] for n in names}
+    assert {t for t in top if not t.endswith(".dist-info")} == {"fpiwarp"}
+
+
+def test_wheel_metadata_has_the_spdx_license_and_its_file(wheel):
+    names = zipfile.ZipFile(wheel).namelist()
+    (metadata,) = [n for n in names if n.endswith(".dist-info/METADATA")]
+    text = zipfile.ZipFile(wheel).read(metadata).decode()
+    assert "License-Expression: MIT" in text
+    assert "License-File: LICENSE" in text
+    assert "Classifier: License" not in text and "\nLicense: " not in text
+    (license_file,) = [n for n in names if n.endswith(".dist-info/licenses/LICENSE")]
+    assert zipfile.ZipFile(wheel).read(license_file).decode() == (ROOT / "LICENSE").read_text(encoding="utf-8")
+    assert "The fpiwarp authors" in (ROOT / "LICENSE").read_text(encoding="utf-8")
 
 
 def test_wheel_ships_kernels_shaders_and_data(wheel):

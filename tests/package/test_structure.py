@@ -1,6 +1,6 @@
-"""The shape of the package: no import cycles, no private names used across
-modules, kernel constants from one place. Modules are grouped by topic, not
-capped by length.
+"""The shape of the package and of the benchmarks beside it: no import
+cycles, no private names used across modules, kernel constants from one
+place. Modules are grouped by topic, not capped by length.
 
 These read the source as text (``ast``), so they hold for every module,
 also those whose backend cannot run here.
@@ -10,12 +10,14 @@ import ast
 
 from support import ROOT
 
-#: Where each top-level source folder is installed (see pyproject.toml).
-TREES = {"fpiwarp": ROOT / "fpiwarp", "fpiwarp.kernels": ROOT / "kernels", "fpiwarp.glsl": ROOT / "glsl"}
+#: Where each top-level source folder is installed (see pyproject.toml), and
+#: the benchmarks (a package run from the checkout: ``python3 -m benchmarks``).
+TREES = {"fpiwarp": ROOT / "fpiwarp", "fpiwarp.kernels": ROOT / "kernels", "fpiwarp.glsl": ROOT / "glsl",
+         "benchmarks": ROOT / "benchmarks"}
 
 
 def _modules():
-    """{dotted name: path} of every Python module of the package."""
+    """{dotted name: path} of every Python module of the package and the benchmarks."""
     found = {}
     for package, folder in TREES.items():
         for path in folder.rglob("*.py"):
@@ -180,8 +182,19 @@ def test_maps_are_called_through_their_public_protocol():
             if (isinstance(node, ast.Attribute) and node.attr in ("_map", "_wirtinger")
                     and not (isinstance(node.value, ast.Name) and node.value.id == "self")):
                 found.append(f"{name}:{node.lineno}")
-    for path in (ROOT / "benchmarks").glob("*.py"):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, ast.Attribute) and node.attr in ("_map", "_wirtinger"):
-                found.append(f"benchmarks/{path.name}:{node.lineno}")
     assert not found, "private map hooks called from outside the map: " + ", ".join(found)
+
+
+def test_the_structure_checks_see_the_benchmarks():
+    """The checks above read benchmarks/ too: its modules are in the graph,
+    with the edges of their relative imports."""
+    assert {"benchmarks.common", "benchmarks.speed", "benchmarks.__main__"} <= set(MODULES)
+    assert "benchmarks.common" in _edges("benchmarks.speed")
+
+
+def test_benchmark_modules_are_named_by_topic():
+    """One naming scheme: a module per topic (speed.py, gl_backend.py, ...),
+    no ``bench_`` prefix, and the shared helpers in benchmarks/common.py."""
+    names = sorted(p.name for p in (ROOT / "benchmarks").glob("*.py"))
+    assert not [n for n in names if n.startswith("bench")], names
+    assert "common.py" in names

@@ -1,11 +1,12 @@
-"""A seeded fuzz of quad pairs for the FPI: generators and a classifier.
+"""A seeded fuzz of quad pairs for the FPI: tolerances and a classifier.
 
 Used by ``test_quad_fuzz.py`` (a few thousand pairs, every CI run) and as
 a script to count outcomes on a larger run, for instance on the code of
-another checkout (``PYTHONPATH=that/checkout python tests/quad_fuzz.py``)::
+another checkout (``PYTHONPATH=that/checkout python tests/support/quad_fuzz.py``)::
 
-    python tests/quad_fuzz.py --pairs 100000 --seed 1
+    python tests/support/quad_fuzz.py --pairs 100000 --seed 1
 
+The pairs come from :mod:`fpiwarp.testing` (shared with the benchmarks).
 Every pair is classified as refused (by error class and the first words of
 its message) or accepted; an accepted pair is checked for K >= 1, for its
 corners (|f(src) - dst| relative to the size of dst), for its inverse
@@ -20,6 +21,7 @@ import sys
 import numpy as np
 
 import fpiwarp
+from fpiwarp.testing import broad_pairs, mirrored_pairs, unit_pairs
 
 #: Accepted maps must meet their corners and round-trip to this fraction of
 #: the quad's size, plus what rounding the inputs' coordinates forces
@@ -47,69 +49,6 @@ def allowed_round_trip_error(f, z, w):
     K size(z) / size(w))."""
     pull_back = f.K * size_of(z) / size_of(w)
     return allowed_error(z) + pull_back * REPRESENTATION_ULPS * EPS * float(np.abs(w).max())
-
-
-def random_quad(rng, convex=True):
-    """A random simple quad of radius about 1 around the origin, counter-clockwise in (x, y)."""
-    gaps = rng.uniform(0.35, 1.0, 4)
-    angles = rng.uniform(0, 2 * np.pi) + np.cumsum(gaps / gaps.sum() * 2 * np.pi)
-    radii = rng.uniform(0.4, 1.0, 4)
-    if not convex:
-        radii[rng.integers(4)] *= 0.15
-    return radii[:, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)
-
-
-def squashed(pts, rng, aspect):
-    """pts stretched by ``aspect`` along a random direction (aspect < 1 squashes)."""
-    t = rng.uniform(0, np.pi)
-    c, s = np.cos(t), np.sin(t)
-    rot = np.array([[c, -s], [s, c]])
-    return pts @ rot @ np.diag([1.0, aspect]) @ rot.T
-
-
-def mirrored(pts):
-    return pts * np.array([-1.0, 1.0])
-
-
-def unit_pairs(rng, n, offset):
-    """n valid pairs of unit-size quads of the same orientation, both moved by ``offset``."""
-    out = []
-    for _ in range(n):
-        z, w = random_quad(rng), random_quad(rng)
-        if rng.random() < 0.5:
-            z, w = mirrored(z), mirrored(w)  # clockwise pairs too
-        out.append((z + offset, w + offset))
-    return out
-
-
-def mirrored_pairs(rng, n, offset):
-    """n pairs of opposite orientation (no orientation-preserving map joins them)."""
-    return [(z, mirrored(w) + offset) for z, w in ((z + offset, w) for z, w in unit_pairs(rng, n, 0.0))]
-
-
-def broad_pairs(rng, n):
-    """n pairs spread over scales 1e-6..1e9, offsets up to 1e9, aspect ratios
-    up to 1e9 (thin quads) and near-degenerate corners, some mirrored."""
-    out = []
-    for _ in range(n):
-        quads = []
-        for _ in range(2):
-            q = random_quad(rng, convex=rng.random() < 0.8)
-            kind = rng.random()
-            if kind < 0.4:
-                q = squashed(q, rng, 10.0 ** -rng.uniform(0, 9))
-            elif kind < 0.5:  # one corner pulled close to the line of its neighbours
-                k = rng.integers(4)
-                a, b = q[(k - 1) % 4], q[(k + 1) % 4]
-                q[k] = 0.5 * (a + b) + (q[k] - 0.5 * (a + b)) * 10.0 ** -rng.uniform(0, 9)
-            quads.append(q)
-        z, w = quads
-        if rng.random() < 0.05:
-            w = mirrored(w)
-        scale = 10.0 ** rng.uniform(-6, 9)
-        offset = rng.choice([0.0, 1.0]) * 10.0 ** rng.uniform(0, 9) * rng.choice([-1, 1], size=2)
-        out.append((z * scale + offset, w * scale + offset * rng.uniform(0.5, 2)))
-    return out
 
 
 def orientation(pts):

@@ -1,6 +1,6 @@
 """Benchmark of the "opencl" backend beside OpenCV and the numpy reference.
 
-Run ``python benchmarks/bench_opencl.py`` (``--repeat N``, ``--small`` for a
+Run ``python3 -m benchmarks.opencl_backend`` (``--repeat N``, ``--small`` for a
 quick smoke run). Needs pyopencl with an OpenCL driver and, for the
 comparison, ``opencv-python-headless``. Methods are timed round-robin in
 one run, so the ratios compare like with like on a busy machine; read the
@@ -21,26 +21,18 @@ faster than numpy maps + cv2.remap; map_points >= 5x numpy.
 """
 
 import argparse
-import statistics
 import sys
-import time
 
 import numpy as np
 
 import fpiwarp
 
+from .common import interleaved, machine_facts, machine_line, medians, remap_maps
+
 
 def _round_robin(methods, repeat):
-    """Time every method ``repeat`` times, interleaved; medians in seconds."""
-    for fn in methods.values():
-        fn()  # warm-up: builds, first-touch allocations
-    times = {name: [] for name in methods}
-    for _ in range(repeat):
-        for name, fn in methods.items():
-            t0 = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - t0)
-    return {name: statistics.median(ts) for name, ts in times.items()}
+    """Median seconds of every method, timed in rounds after a warm-up."""
+    return medians(interleaved(methods, repeat)[0])
 
 
 def demo_fpi(w, h):
@@ -51,19 +43,13 @@ def demo_fpi(w, h):
     )
 
 
-def numpy_maps(transform, h, w):
-    """Float32 remap tables from the numpy float64 source positions."""
-    s = fpiwarp.source_positions(transform, (h, w)).astype(np.float32)
-    return np.ascontiguousarray(s[..., 0]), np.ascontiguousarray(s[..., 1])
-
-
-def bench_warp(h, w, repeat):
+def warp_rows(h, w, repeat):
     import cv2
 
     rng = np.random.default_rng(0)
     image = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
     f = demo_fpi(w, h)
-    mx, my = numpy_maps(f, h, w)
+    mx, my = remap_maps(f, (h, w))
 
     def opencl():
         return fpiwarp.warp_image(image, f, order=1, mode="constant", backend="opencl")
@@ -72,7 +58,7 @@ def bench_warp(h, w, repeat):
         return cv2.remap(image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
     def numpy_then_remap():
-        ax, ay = numpy_maps(f, h, w)
+        ax, ay = remap_maps(f, (h, w))
         return cv2.remap(image, ax, ay, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
     got = opencl()
@@ -89,7 +75,7 @@ def bench_warp(h, w, repeat):
     ), agree
 
 
-def bench_points(n, repeat):
+def point_rows(n, repeat):
     rng = np.random.default_rng(1)
     pts = rng.uniform(0, 3840, (n, 2))
     f = demo_fpi(3840, 2160)
@@ -116,9 +102,10 @@ def main(argv=None):
 
     h, w = (270, 480) if args.small else (2160, 3840)
     n = 100_000 if args.small else 10_000_000
+    print(machine_line(machine_facts(backends=False)))
     print(f"device: {get_backend('opencl').device_label}")
 
-    warp, agree = bench_warp(h, w, args.repeat)
+    warp, agree = warp_rows(h, w, args.repeat)
     base = warp["cv2.remap, maps precomputed"]
     print(f"\n{w}x{h} RGB uint8, bilinear, end to end (median of {args.repeat}, round-robin)")
     print(f"{'method':32s} {'ms':>9s} {'x cv2.remap':>12s}")
@@ -129,7 +116,7 @@ def main(argv=None):
     print(f"opencl vs numpy maps + cv2.remap: {speedup:.2f}x faster (target >= 3)")
     print(f"pixels within 2 levels of cv2.remap: {agree:.4f}")
 
-    pts = bench_points(n, args.repeat)
+    pts = point_rows(n, args.repeat)
     print(f"\nmap_points, {n:,} points (median of {args.repeat})")
     print(f"{'method':32s} {'ms':>9s}")
     for name, t in pts.items():

@@ -12,7 +12,7 @@ Stacks already in memory (``warp_batch`` in one launch against the loop)
 are measured by :mod:`benchmarks.batch_stacks` (``python -m benchmarks
 --only batch``).
 
-Run: ``python benchmarks/bench_batch.py [--images N] [--jobs J] [--backends numpy,gl]``.
+Run: ``python3 -m benchmarks.folder_batch [--images N] [--jobs J] [--backends numpy,gl]``.
 Needs Pillow and opencv-python-headless. Numbers on a shared machine are
 noisy: compare the ratios within one run.
 """
@@ -28,7 +28,9 @@ from pathlib import Path
 import numpy as np
 
 import fpiwarp
-from fpiwarp.batch.images import run_batch
+from fpiwarp.batch import run_batch
+
+from .common import machine_facts, machine_line, remap_maps
 
 WIDTH, HEIGHT = 1920, 1080
 
@@ -55,21 +57,16 @@ def sample_transform():
     return fpiwarp.FPI([[0, 0], [w, 0], [w, h], [0, h]], [[90, 60], [w - 200, -40], [w + 60, h - 90], [-100, h + 30]])
 
 
-def numpy_maps(transform):
-    src = fpiwarp.source_positions(transform, (HEIGHT, WIDTH)).astype(np.float32)
-    return np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
-
-
 def baseline(files, out_dir, transform, maps_once):
     """The plain loop: Pillow open, (numpy maps), cv2.remap, Pillow save."""
     import cv2
     from PIL import Image
 
-    maps = numpy_maps(transform) if maps_once else None
+    maps = remap_maps(transform, (HEIGHT, WIDTH)) if maps_once else None
     for path in files:
         with Image.open(path) as im:
             img = np.asarray(im)
-        mx, my = maps if maps_once else numpy_maps(transform)
+        mx, my = maps if maps_once else remap_maps(transform, (HEIGHT, WIDTH))
         out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
         Image.fromarray(out).save(out_dir / path.name, quality=90)
 
@@ -117,6 +114,7 @@ def main(argv=None):
                 rows.append((name, timed(run)))
 
         reference = rows[0][1]
+        print(machine_line(machine_facts(backends=False)))
         print(f"{args.images} JPEGs of {WIDTH}x{HEIGHT} RGB, bilinear, {os.cpu_count()} CPU cores")
         print(f"{'method':58} {'images/s':>9} {'vs loop':>8}")
         for name, seconds in rows:

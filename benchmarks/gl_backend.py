@@ -10,52 +10,29 @@ from this one run.
 
 Usage::
 
-    python benchmarks/bench_gl.py [--sizes 3840x2160,1920x1080] [--repeat 7]
+    python3 -m benchmarks.gl_backend [--sizes 3840x2160,1920x1080] [--repeat 7]
 """
 
 import argparse
 import statistics
-import time
 
 import numpy as np
 
-import fpiwarp
-
-
-def _fpi(w, h):
-    s = w / 64.0
-    return fpiwarp.FPI(
-        [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]],
-        [[4 * s, 3 * s], [w - 4 * s, -2 * s], [w + 3 * s, h + 2 * s], [-3 * s, h - 4 * s]],
-    )
-
-
-def remap_reference(img, transform):
-    """cv2.remap of ``img`` by ``transform`` with the float32 maps computed
-    here, outside any clock (a zero-argument callable), or None without cv2."""
-    try:
-        import cv2
-    except ImportError:
-        print("(cv2 not installed: pip install opencv-python-headless for the reference row)")
-        return None
-    h, w = img.shape[:2]
-    grid = np.stack(np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64)), -1)
-    src = transform.inverse(grid).astype(np.float32)
-    mx, my = np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
-    return lambda: cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+from .common import frame_fpi, interleaved, machine_facts, machine_line, remap_call
 
 
 def _methods(w, h, img):
     """name -> zero-argument callable, each one complete warp of ``img``."""
     from fpiwarp.backends import get_backend
 
-    f = _fpi(w, h)
+    f = frame_fpi(h, w)
     gl = get_backend("gl").warper
     cval = np.zeros(3)
     methods = {}
-    reference = remap_reference(img, f)
-    if reference is not None:
-        methods["cv2.remap, precomputed maps"] = reference
+    try:
+        methods["cv2.remap, precomputed maps"] = remap_call(img, f)
+    except ImportError:
+        print("(cv2 not installed: pip install opencv-python-headless for the reference row)")
     methods["gl warp_image (software bilinear)"] = lambda: gl.warp_image(
         img, f, (h, w), order=1, mode="constant", cval=cval)
     methods["gl warp_image hardware_filter"] = lambda: gl.warp_image(
@@ -75,19 +52,13 @@ def run(sizes, repeat):
     if reason is not None:
         raise SystemExit(f"gl backend unavailable: {reason}")
     ctx = shared_context()
+    print(machine_line(machine_facts(backends=False)))
     print(f"GL renderer: {ctx.info['GL_RENDERER']} ({ctx.info['GL_VERSION']})")
     rows = []
     for w, h in sizes:
         img = np.random.default_rng(0).integers(0, 256, (h, w, 3), dtype=np.uint8)
         methods = _methods(w, h, img)
-        times = {name: [] for name in methods}
-        for fn in methods.values():  # warm-up: compile, allocate textures
-            fn()
-        for _ in range(repeat):
-            for name, fn in methods.items():
-                t0 = time.perf_counter()
-                fn()
-                times[name].append(time.perf_counter() - t0)
+        times, _ = interleaved(methods, repeat)  # warm-up first: compile, allocate textures
         base = statistics.median(times[next(iter(times))]) if "cv2" in next(iter(times)) else None
         for name, ts in times.items():
             med = statistics.median(ts)

@@ -8,7 +8,7 @@
   traffic reached (image read + image written, a lower bound);
 * map_points on 10M points beside the numpy reference.
 
-Run: ``python benchmarks/bench_warp.py [--device cpu|cuda:0] [--repeat N]``.
+Run: ``python3 -m benchmarks.nvwarp_backend [--device cpu|cuda:0] [--repeat N]``.
 Warp's CPU device runs a launch on one thread; the backend splits large
 calls into bands over its thread pool, so on the CPU both one thread and
 the default thread count are measured. On CUDA the device is synchronized
@@ -23,19 +23,10 @@ import numpy as np
 import fpiwarp
 from fpiwarp.backends.nvwarp import backend as warp_backend
 
+from .common import best_time, machine_facts, machine_line, remap_maps
+
 WIDTH, HEIGHT = 3840, 2160
 N_POINTS = 10_000_000
-
-
-def best_time(fn, repeat):
-    """Best wall time of ``repeat`` calls, in seconds (after one warm-up)."""
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def sample_transform():
@@ -46,25 +37,19 @@ def sample_transform():
     return fpiwarp.FPI(src, dst)
 
 
-def numpy_maps(transform, shape):
-    """cv2.remap maps from the numpy reference: the inverse at every pixel."""
-    src = fpiwarp.source_positions(transform, shape).astype(np.float32)
-    return np.ascontiguousarray(src[..., 0]), np.ascontiguousarray(src[..., 1])
-
-
 def image_rows(backends, transform, repeat):
     """Rows of (name, seconds) for the 4K RGB benchmark, and an RGBA row."""
     import cv2
 
     rng = np.random.default_rng(0)
     img = rng.integers(0, 256, size=(HEIGHT, WIDTH, 3), dtype=np.uint8)
-    mapx, mapy = numpy_maps(transform, (HEIGHT, WIDTH))
+    mapx, mapy = remap_maps(transform, (HEIGHT, WIDTH))
 
     def remap_only():
         return cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
     def numpy_then_remap():
-        mx, my = numpy_maps(transform, (HEIGHT, WIDTH))
+        mx, my = remap_maps(transform, (HEIGHT, WIDTH))
         return cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
     def warp_with(backend, image):
@@ -109,6 +94,7 @@ def main(argv=None):
         raise SystemExit(f"the warp backend cannot run here: {reason}")
     t0 = time.perf_counter()
     backend = warp_backend.Backend(device=args.device)
+    print(machine_line(machine_facts(backends=False)))
     print(f"Warp device {backend.device}; kernel load (compile or disk cache): {time.perf_counter() - t0:.2f} s\n")
     backends = [backend]
     if backend.device.is_cpu and backend.threads > 1:

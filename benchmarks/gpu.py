@@ -24,45 +24,19 @@ Waiting is ``wp.synchronize_device`` (Warp), ``queue.finish`` (OpenCL),
 
 Usage::
 
-    python3 benchmarks/bench_gpu.py [--sizes 1920x1080,3840x2160] [--repeat 7] [--frames 50]
+    python3 -m benchmarks.gpu [--sizes 1920x1080,3840x2160] [--repeat 7] [--frames 50]
 """
 
 import argparse
 import functools
 import statistics
-import time
 
 import numpy as np
 
 import fpiwarp
 from fpiwarp.backends import backend_status, get_backend
 
-try:  # python3 -m benchmarks.bench_gpu
-    from .bench_gl import remap_reference
-except ImportError:  # python3 benchmarks/bench_gpu.py
-    from bench_gl import remap_reference
-
-
-def fpi_for(w, h, t=0.0):
-    """A generic FPI of a w×h frame; ``t`` moves one corner (a drag)."""
-    s = w / 64.0
-    return fpiwarp.FPI(
-        [[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]],
-        [[4 * s, 3 * s], [w - 4 * s, -2 * s], [w + (3 + t) * s, h + 2 * s], [-3 * s, h - 4 * s]],
-    )
-
-
-def _frames(n, launch, sync, each=True):
-    """Seconds per frame over n launches: each one waited for (``each``: a
-    preview shows every frame), or only the last (throughput)."""
-    sync()
-    t0 = time.perf_counter()
-    for k in range(n):
-        launch(k)
-        if each:
-            sync()
-    sync()
-    return (time.perf_counter() - t0) / n
+from .common import frame_fpi, frames, interleaved, machine_facts, machine_markdown, remap_call
 
 
 def kernel_on_device(be, img, w, h, n, new_map):
@@ -70,14 +44,14 @@ def kernel_on_device(be, img, w, h, n, new_map):
     device (``Backend.prepare_warp``: Warp and OpenCL), a new map uploaded
     per frame when ``new_map``."""
     job = be.prepare_warp(img, (h, w), order=1, mode="constant", cval=np.zeros(img.shape[2]))
-    job.set_map(fpi_for(w, h))
+    job.set_map(frame_fpi(h, w))
 
     def launch(k):
         if new_map:
-            job.set_map(fpi_for(w, h, k % 8))
+            job.set_map(frame_fpi(h, w, k % 8))
         job.launch()
 
-    return _frames(n, launch, job.finish, each=new_map)
+    return frames(n, launch, job.finish, each=new_map)
 
 
 def gl_on_device(be, img, w, h, n, new_map):
@@ -91,17 +65,17 @@ def gl_on_device(be, img, w, h, n, new_map):
     fbo = ctx.framebuffer(color_attachments=[tex])
     try:
         renderer.set_image(img)
-        renderer.set_transform(fpi_for(w, h))
+        renderer.set_transform(frame_fpi(h, w))
         fbo.use()
 
         def launch(k):
             if new_map:
-                renderer.set_transform(fpi_for(w, h, k % 8))
+                renderer.set_transform(frame_fpi(h, w, k % 8))
             renderer.draw((0, 0, w, h), y_down=True)
 
         # every frame waited for: llvmpipe skips drawing a full-screen frame
         # that the next draw of the same scene covers
-        return _frames(n, launch, ctx.finish)
+        return frames(n, launch, ctx.finish)
     finally:
         renderer.release()
         fbo.release()
@@ -124,26 +98,24 @@ def run(sizes, repeat, frames, backends):
     for w, h in sizes:
         for channels in (3, 4):
             img = np.random.default_rng(0).integers(0, 256, (h, w, channels), dtype=np.uint8)
-            f = fpi_for(w, h)
+            f = frame_fpi(h, w)
             methods = {}
-            reference = remap_reference(img, f)
-            if reference is not None:
-                methods["cv2.remap, precomputed maps (CPU)"] = reference
+            try:
+                methods["cv2.remap, precomputed maps (CPU)"] = remap_call(img, f)
+            except ImportError:
+                print("(cv2 not installed: pip install opencv-python-headless for the reference row)")
             for name in backends:
                 be = get_backend(name)
                 methods[f"{name} end to end"] = functools.partial(
                     fpiwarp.warp_image, img, f, (h, w), order=1, mode="constant", cval=0, backend=name)
                 for label, new_map in (("on device, new map per frame", True), ("on device, kernel only", False)):
                     methods[f"{name} {label}"] = functools.partial(ON_DEVICE[name], be, img, w, h, frames, new_map)
-            times = {k: [] for k in methods}
-            for fn in methods.values():  # warm-up: compile, allocate
-                fn()
+            # the on-device methods return their own per-frame time; the others are timed as a whole
+            times, outs = {k: [] for k in methods}, {}
             for _ in range(repeat):
-                for k, fn in methods.items():
-                    t0 = time.perf_counter()
-                    out = fn()
-                    dt = time.perf_counter() - t0
-                    times[k].append(out if isinstance(out, float) else dt)
+                walls, outs = interleaved(methods, 1, warm_up=not outs)
+                for k, dt in walls.items():
+                    times[k].append(outs[k] if isinstance(outs[k], float) else dt[0])
             for k, ts in times.items():
                 rows.append((f"{w}x{h}", channels, k, statistics.median(ts), min(ts)))
     return rows
@@ -161,7 +133,7 @@ def markdown(rows, devices):
         cells = [size, c, name, f"{med * 1e3:.2f}", f"{best * 1e3:.2f}", f"{1 / med:.0f}", f"{gbs:.1f}", ratio]
         lines.append("| " + " | ".join(str(v) for v in cells) + " |")
     dev = "\n".join(f"- {k}: {v}" for k, v in devices.items())
-    return "Devices:\n" + dev + "\n\n" + "\n".join(lines) + "\n"
+    return machine_markdown(machine_facts(backends=False)) + "\n\nDevices:\n" + dev + "\n\n" + "\n".join(lines) + "\n"
 
 
 def main(argv=None):
@@ -209,7 +181,8 @@ def _in_own_process(name, args):
 
     cmd = [
         sys.executable,
-        __file__,
+        "-m",
+        __spec__.name,
         "--backends",
         name,
         "--sizes",

@@ -1,35 +1,24 @@
 """Host math figures for the core: solve time, map throughput, accuracy.
 
-Run: python3 -m benchmarks.bench_core
+Run: python3 -m benchmarks.host_math
 Prints the time to solve one FPI, numpy map throughput on 1M points, and
 the worst float64 errors (interpolation, inverse round trip, Jacobian
 against central finite differences) over random quads at scales 1e-2..1e4.
 """
 
-import time
 
 import numpy as np
 
 import fpiwarp
+from fpiwarp import testing
+
+from .common import best_time, machine_facts, machine_line
 
 
 def random_quad(rng, scale):
-    angles = np.sort(rng.uniform(0, 2 * np.pi, 4))
-    while np.min(np.diff(np.r_[angles, angles[0] + 2 * np.pi])) < 0.6:
-        angles = np.sort(rng.uniform(0, 2 * np.pi, 4))
-    r = rng.uniform(0.5, 1.0, 4)
-    center = rng.uniform(-2, 2, 2)
-    return scale * (center + r[:, None] * np.c_[np.cos(angles), np.sin(angles)])
-
-
-def best_of(fn, repeat=5, number=1):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        for _ in range(number):
-            fn()
-        times.append((time.perf_counter() - t0) / number)
-    return min(times)
+    """A convex quad of radius about ``scale`` (:func:`fpiwarp.testing.random_quad`)
+    centered up to 2 ``scale`` from the origin."""
+    return scale * (rng.uniform(-2, 2, 2) + testing.random_quad(rng))
 
 
 def finite_difference_jacobian(f, p, h):
@@ -70,11 +59,12 @@ def accuracy(rng, trials=300):
 def main():
     rng = np.random.default_rng(0)
     z, w = random_quad(rng, 500), random_quad(rng, 500)
-    solve = best_of(lambda: fpiwarp.FPI(z, w), repeat=5, number=200)
+    solve = best_time(lambda: fpiwarp.FPI(z, w), repeat=5, number=200)
     f = fpiwarp.FPI(z, w)
     pts = rng.uniform(-500, 500, size=(1_000_000, 2))
-    fwd = best_of(lambda: f(pts), repeat=5)
-    inv = best_of(lambda: f.inverse(pts), repeat=5)
+    fwd = best_time(lambda: f(pts), repeat=5)
+    inv = best_time(lambda: f.inverse(pts), repeat=5)
+    print(machine_line(machine_facts(backends=False)))
     print(f"solve one FPI:              {solve * 1e6:8.1f} us")
     print(f"map 1M points (numpy):      {fwd * 1e3:8.1f} ms  = {1e6 / fwd / 1e6:6.1f} M points/s")
     print(f"inverse of 1M points:       {inv * 1e3:8.1f} ms")
