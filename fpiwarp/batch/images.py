@@ -26,6 +26,7 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..arrays import labels
 from ..backends import get_backend
 from ..errors import ArgumentError
 from ..io.images import read_image
@@ -176,6 +177,9 @@ def warp_batch(
     >>> fpiwarp.warp_batch(stack, maps).shape
     (3, 4, 5, 3)
     """
+    if labels.label_dtype(images) is not None:  # bool and integer labels: order 0 through a carrier
+        return labels.warp_labels(warp_batch, images, transforms, output_shape, batch=True, order=order, mode=mode,
+                                  cval=cval, backend=backend, antialias=antialias, out=out, channels=channels)
     if not isinstance(images, np.ndarray) or out is not None or channels != "last":
         from . import arrays as batch_path  # noqa: PLC0415 - device arrays, out= and layouts
 
