@@ -388,6 +388,21 @@ class FPIStack(Sequence):
         m1, m2, m3 = rlinear_inverse_many(l1, l2, l3)
         return FPIStack(self._w, self._z, (qd, sd, ald, m1, m2, m3, qs, ss, als))
 
+    @property
+    def poles(self):
+        """(N,) complex: the point each map sends to infinity (z∞ of
+        :attr:`FPI.pole`), NaN where the map is affine (no pole)."""
+        qs, ss, als, l1, l2, l3, qd, sd, ald = self._parts
+        from ..block.many import rlinear_inverse_many  # noqa: PLC0415
+
+        m1, m2, m3 = rlinear_inverse_many(l1, l2, l3)
+        with np.errstate(all="ignore"):
+            zeta = np.where(sd != 0, -ald / sd, np.nan)  # m_dst(∞); A⁻¹ of it, then m_src⁻¹
+            xi = m1 * zeta + m2 * np.conj(zeta) + m3
+            pole = _mobius_inverse(xi[:, None], qs, ss, als)[:, 0]
+            pole = np.where(sd != 0, pole, np.where(ss != 0, qs + 1 / ss, np.nan))
+        return np.where(np.isfinite(pole), pole, np.nan)
+
     def map_complex(self, z):
         """(N, P) complex points, set i mapped by map i."""
         qs, ss, als, l1, l2, l3, qd, sd, ald = self._parts
