@@ -67,11 +67,11 @@ def random_fpis(draws, shape, max_distortion, max_corner_shift, p):
     jitter = (2 * draws[:, :8].reshape(n, 4, 2) - 1) * max_corner_shift * np.array([w_, h], float)
     jitter = np.where((draws[:, 8] < p)[:, None, None], jitter, 0.0)
     for _ in range(60):  # halvings for the few maps the budget's scaling would fold (never at small shifts)
-        dst = _within_budget(src, src + jitter, max_distortion)
+        dst, stack = _within_budget(src, src + jitter, max_distortion)
         w = dst[..., 0] + 1j * dst[..., 1]
         bad = ~_convex(w) | _near_refusal(w)
         if not bad.any():
-            stack = FPI.many(src, dst)
+            stack = FPI.many(src, dst) if stack is None else stack
             pole = stack.poles
             bad = (np.abs(pole.real - (w_ - 1) / 2) <= w_ / 2 + 1) & (np.abs(pole.imag - (h - 1) / 2) <= h / 2 + 1)
             if not bad.any():
@@ -88,17 +88,18 @@ def _convex(w):
 
 
 def _within_budget(src, dst, max_distortion):
-    """The target corners ``dst`` with those of maps above the budget moved
-    to meet it: the FPI's R-linear part scaled to K = max_distortion."""
+    """(dst, its FPIStack or None where it changed): the target corners with
+    those of maps above the budget moved to meet it (the FPI's R-linear
+    part scaled to K = max_distortion)."""
     stack = FPI.many(src, dst)
     K = stack.K
     over = K > max_distortion
     if not over.any():
-        return dst
+        return dst, stack
     qs, ss, als, l1, l2, l3, qd, sd, ald = stack._parts
     mu_max = (max_distortion - 1) / (max_distortion + 1) * (1 - BUDGET_MARGIN)
     mu = np.abs(l2) / np.abs(l1)
     scaled = np.where(over, l2 * (mu_max / np.where(over, mu, 1)), l2)
     z = src[..., 0] + 1j * src[..., 1]
     moved = FPIStack(z, z, (qs, ss, als, l1, scaled, l3, qd, sd, ald)).map_complex(z)
-    return np.where(over[:, None, None], np.stack([moved.real, moved.imag], axis=-1), dst)
+    return np.where(over[:, None, None], np.stack([moved.real, moved.imag], axis=-1), dst), None
