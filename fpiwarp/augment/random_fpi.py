@@ -28,7 +28,7 @@ class RandomFPI:
     """A random FPI per sample: the image outline's four corners move by up
     to ``max_corner_shift`` of its size, with conformal distortion K <=
     ``max_distortion`` everywhere (closed form, see
-    :mod:`fpiwarp.augment.sampling`) and no fold over the image.
+    ``fpiwarp.augment.sampling``) and no fold over the image.
 
     Parameters
     ----------

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import ArgumentError
 from ..maps.fpi import FPI, FPIStack
-from ..maps.fpi import _quads_near_refusal as _near_refusal
+from ..maps.fpi import quads_near_refusal as _near_refusal
 
 #: Largest corner shift: up to it the target quad stays convex.
 MAX_CORNER_SHIFT = 0.25
@@ -96,7 +96,7 @@ def _within_budget(src, dst, max_distortion):
     over = K > max_distortion
     if not over.any():
         return dst, stack
-    qs, ss, als, l1, l2, l3, qd, sd, ald = stack._parts
+    qs, ss, als, l1, l2, l3, qd, sd, ald = stack.parts
     mu_max = (max_distortion - 1) / (max_distortion + 1) * (1 - BUDGET_MARGIN)
     mu = np.abs(l2) / np.abs(l1)
     scaled = np.where(over, l2 * (mu_max / np.where(over, mu, 1)), l2)

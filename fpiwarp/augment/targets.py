@@ -19,7 +19,7 @@ points per edge, whose bounds miss the exact ones by at most
 
 import numpy as np
 
-from ..maps.fpi import FPI, FPIStack
+from ..maps.fpi import FPI, FPIStack, mobius_inverse_many
 
 #: Points per box edge where the bounds are sampled (maps other than FPIs).
 DENSE_POINTS = 256
@@ -70,17 +70,13 @@ def _outline(boxes):
 
 def box_bounds(transform, boxes):
     """(n, 4) bounds (x0, y0, x1, y1) of the image of each box's outline
-    under ``transform`` (an FPI, one map of an :class:`FPIStack`, or any
+    under ``transform`` (an FPI, one map of an :class:`~fpiwarp.maps.fpi.FPIStack`, or any
     map)."""
     boxes = as_boxes(boxes)
     if len(boxes) == 0:
         return boxes.copy()
     if isinstance(transform, FPI) and transform.m_src.s == 0:
-        f = transform
-        stack = FPIStack(f._z[None], f._w[None], tuple(np.array([v]) for v in (
-            f.m_src.q, f.m_src.s, f.m_src.alpha, f.linear.l1, f.linear.l2, f.linear.l3, f.m_dst.q, f.m_dst.s,
-            f.m_dst.alpha)))
-        return stack_box_bounds(stack, boxes[None])[0]
+        return stack_box_bounds(FPIStack.of([transform]), boxes[None])[0]
     edges = _outline(boxes)
     t = np.linspace(0, 1, DENSE_POINTS)
     pts = edges[..., :1] + (edges[..., 1:] - edges[..., :1]) * t  # (n, 4, DENSE_POINTS)
@@ -90,9 +86,9 @@ def box_bounds(transform, boxes):
 
 def stack_box_bounds(stack, boxes):
     """(N, n, 4) exact bounds of (N, n, 4) boxes, set i under map i of an
-    :class:`FPIStack` whose source-side Möbius parts are affine (s = 0: the
+    :class:`~fpiwarp.maps.fpi.FPIStack` whose source-side Möbius parts are affine (s = 0: the
     maps of an image outline)."""
-    qs, ss, als, l1, l2, l3, qd, sd, ald = stack._parts
+    qs, ss, als, l1, l2, l3, qd, sd, ald = stack.parts
     if np.any(ss != 0):
         raise ValueError("stack_box_bounds needs maps whose source Möbius part is affine (s = 0)")
     n, m = boxes.shape[:2]
@@ -101,10 +97,8 @@ def stack_box_bounds(stack, boxes):
     p = l1[:, None] * u + l2[:, None] * np.conj(u) + l3[:, None]
     p = p.reshape(n, m * 4, 2)
     ends = np.stack([p[..., 0], 0.5 * (p[..., 0] + p[..., 1]), p[..., 1]], axis=-1).reshape(n, -1)
-    from ..maps.fpi import _mobius_inverse  # noqa: PLC0415 - the one formula of m_W⁻¹
-
     with np.errstate(all="ignore"):
-        a, mid, b = np.moveaxis(_mobius_inverse(ends, qd, sd, ald).reshape(n, m * 4, 3), -1, 0)
+        a, mid, b = np.moveaxis(mobius_inverse_many(ends, qd, sd, ald).reshape(n, m * 4, 3), -1, 0)
         lo, hi = arc_bounds(a, mid, b)
     lo, hi = lo.reshape(n, m, 4), hi.reshape(n, m, 4)
     return np.stack([lo.real.min(2), lo.imag.min(2), hi.real.max(2), hi.imag.max(2)], axis=-1)
