@@ -13,6 +13,7 @@ ORDER = [
     "plot_antialias.py",
     "plot_map_points_mesh.py",
     "plot_source_positions.py",
+    "plot_torch_registration.py",
     "plot_batch_folder.py",
     "plot_embed_renderer.py",
 ]

@@ -60,7 +60,7 @@ def forbid_warp_host_copies(monkeypatch, wp):
 def forbid_opencl_host_copies(monkeypatch, cla, limit):
     """Readbacks, Array.get and host arrays of ``limit`` bytes or more in
     enqueue_copy fail (test_arrays_opencl's rule), and the host batch path."""
-    from test_arrays_opencl import forbid_host_copies
+    from support.array_cases import forbid_host_copies
 
     from fpiwarp.backends.opencl import batch as opencl_batch
 
