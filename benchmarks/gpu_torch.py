@@ -150,7 +150,8 @@ def main(argv=None):
     lines = [f"# fpiwarp.torch on {name}", "", f"torch {torch.__version__}, device {device}.", ""]
     ok = True
     if device.type == "cuda":
-        rc = subprocess.call([sys.executable, "-m", "pytest", "-q", "tests/torch_warps/test_torch_grad.py", "-k", "cuda"])
+        rc = subprocess.call([sys.executable, "-m", "pytest", "-q", "tests/torch_warps/test_torch_grad.py",
+                              "-k", "cuda"])
         lines.append(f"- tests/torch_warps/test_torch_grad.py -k cuda: exit {rc} ({'ok' if rc == 0 else 'FAIL'})")
         ok &= rc == 0
     ok &= parity(device, lines)
