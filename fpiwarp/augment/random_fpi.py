@@ -4,9 +4,9 @@ images and everything annotated on them."""
 import numpy as np
 
 from ..arrays.kinds import array_info
-from ..backends import backend_status
+from ..backends import get_backend
 from ..batch.images import warp_batch
-from ..errors import ArgumentError
+from ..errors import ArgumentError, BackendUnavailableError
 from ..warping import warp_image
 from .sampling import DRAWS, check_budget, random_fpis
 from .targets import as_boxes, as_points, box_bounds, clip_boxes, densify, inside, stack_box_bounds
@@ -17,10 +17,18 @@ _chosen = []
 
 
 def fastest_host_backend():
-    """The first of :data:`HOST_PREFERENCE` that runs here (checked once)."""
+    """The first of :data:`HOST_PREFERENCE` that runs here (checked once;
+    only those candidates are probed: no GL context is made, which matters
+    because Mesa's llvmpipe and triton's LLVM, imported by torchvision,
+    crash a process that loads triton after a GL context)."""
     if not _chosen:
-        status = backend_status()
-        _chosen.append(next(name for name in HOST_PREFERENCE if status.get(name) is None))
+        for name in HOST_PREFERENCE:
+            try:
+                get_backend(name)
+            except BackendUnavailableError:
+                continue
+            _chosen.append(name)
+            break
     return _chosen[0]
 
 
@@ -90,8 +98,24 @@ class RandomFPI:
         """The maps of the next ``n`` samples (an FPIStack), or of the next
         one (an FPI) when ``n`` is None, for (H, W) images."""
         draws = self.rng.random((1 if n is None else n, DRAWS))
-        stack = random_fpis(draws, _hw(shape), self.max_distortion, self.max_corner_shift, self.p)
-        return stack[0] if n is None else stack
+        return self.maps_from_draws(draws, shape)[0] if n is None else self.maps_from_draws(draws, shape)
+
+    def maps_from_draws(self, draws, shape, p=None):
+        """The FPIStack of ``draws`` ((n, DRAWS) uniforms in [0, 1), the
+        last the probability's, ``p`` None: this transform's) for (H, W)
+        images: how the adapters turn their library's random numbers into
+        this transform's maps."""
+        return random_fpis(np.asarray(draws, np.float64).reshape(-1, DRAWS), _hw(shape), self.max_distortion,
+                           self.max_corner_shift, self.p if p is None else p)
+
+    def apply_to_image(self, f, image):
+        """``image`` warped by map ``f`` as this transform warps images."""
+        return warp_image(image, f, order=self.order, cval=self.cval, backend=self._backend_for(image),
+                          antialias=self.antialias)
+
+    def apply_to_mask(self, f, mask):
+        """``mask`` warped by map ``f`` at order 0 (labels and dtype kept)."""
+        return warp_image(mask, f, order=0, cval=self.mask_cval, backend=self._backend_for(mask))
 
     def _backend_for(self, array):
         if self.backend is not None:
@@ -107,10 +131,9 @@ class RandomFPI:
         f = self.sample(hw)
         out = {"transform": f}
         if image is not None:
-            out["image"] = warp_image(image, f, order=self.order, cval=self.cval, backend=self._backend_for(image),
-                                      antialias=self.antialias)
+            out["image"] = self.apply_to_image(f, image)
         if mask is not None:
-            out["mask"] = warp_image(mask, f, order=0, cval=self.mask_cval, backend=self._backend_for(mask))
+            out["mask"] = self.apply_to_mask(f, mask)
         out.update(self.apply_to_annotations(f, hw, keypoints=keypoints, boxes=boxes, polygons=polygons))
         return out
 
