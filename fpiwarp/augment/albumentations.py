@@ -71,21 +71,25 @@ class RandomFPI(DualTransform):
         return ("max_distortion", "max_corner_shift", "backend", "antialias", "order", "cval", "mask_cval")
 
     def get_params_dependent_on_data(self, params, data):
+        """``{"transform": FPI}``: the sample's map, drawn from ``random_generator``."""
         draws = self.random_generator.random((1, DRAWS))
         return {"transform": self.aug.maps_from_draws(draws, params["shape"][:2], p=1.0)[0]}
 
     def apply(self, img, transform, **params):
+        """The image (H, W[, C], any C) warped by the map."""
         if img.ndim == 3 and img.shape[2] > 4:  # up to 4 channels per warp
             return np.concatenate([self.apply(img[..., k:k + 4], transform) for k in range(0, img.shape[2], 4)], -1)
         out = self.aug.apply_to_image(transform, np.ascontiguousarray(img))
         return out[..., None] if img.ndim == 3 and out.ndim == 2 else out
 
     def apply_to_mask(self, mask, transform, **params):
+        """A mask (H, W[, C]) at order 0, labels and dtype kept."""
         if mask.ndim == 3:  # (H, W, C) label planes, each at order 0
             return np.stack([self.apply_to_mask(mask[..., k], transform) for k in range(mask.shape[2])], -1)
         return self.aug.apply_to_mask(transform, np.ascontiguousarray(mask))
 
     def apply_to_bboxes(self, bboxes, transform, **params):
+        """Normalized (N, 4+) boxes: the bounds of each mapped outline."""
         if len(bboxes) == 0:
             return bboxes
         h, w = params["shape"][:2]
@@ -96,6 +100,7 @@ class RandomFPI(DualTransform):
         return out
 
     def apply_to_keypoints(self, keypoints, transform, **params):
+        """(N, 2+) keypoints through the map (angle and scale by its Jacobian)."""
         if len(keypoints) == 0:
             return keypoints
         out = keypoints.astype(np.float64)

@@ -8,7 +8,7 @@ from ..backends import get_backend
 from ..batch.images import warp_batch
 from ..errors import ArgumentError, BackendUnavailableError
 from ..warping import warp_image
-from .sampling import DRAWS, check_budget, random_fpis
+from .sampling import DRAWS, check_budget, one_random_fpi, random_fpis
 from .targets import as_boxes, as_points, box_bounds, clip_boxes, densify, inside, stack_box_bounds
 
 #: Host backends in order of preference for numpy images (the fastest first).
@@ -98,7 +98,9 @@ class RandomFPI:
         """The maps of the next ``n`` samples (an FPIStack), or of the next
         one (an FPI) when ``n`` is None, for (H, W) images."""
         draws = self.rng.random((1 if n is None else n, DRAWS))
-        return self.maps_from_draws(draws, shape)[0] if n is None else self.maps_from_draws(draws, shape)
+        if n is None:
+            return one_random_fpi(draws, _hw(shape), self.max_distortion, self.max_corner_shift, self.p)
+        return self.maps_from_draws(draws, shape)
 
     def maps_from_draws(self, draws, shape, p=None):
         """The FPIStack of ``draws`` ((n, DRAWS) uniforms in [0, 1), the

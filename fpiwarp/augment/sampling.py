@@ -19,7 +19,7 @@ the defaults on square images).
 
 import numpy as np
 
-from ..errors import ArgumentError
+from ..errors import ArgumentError, FpiwarpError
 from ..maps.fpi import FPI, FPIStack
 from ..maps.fpi import quads_near_refusal as _near_refusal
 
@@ -78,6 +78,45 @@ def random_fpis(draws, shape, max_distortion, max_corner_shift, p):
                 return stack
         jitter = np.where(bad[:, None, None], jitter / 2, jitter)
     raise AssertionError("unreachable: a jitter halved 60 times is an identity")  # pragma: no cover
+
+
+def one_random_fpi(draws, shape, max_distortion, max_corner_shift, p):
+    """The FPI of one draw ((1, DRAWS) uniforms), as :func:`random_fpis`
+    gives it, built lean: the corners in plain Python floats (the same
+    operations in the same order, so the same numbers) and one
+    :class:`~fpiwarp.maps.fpi.FPI` with its own checks, no arrays of maps.
+    A draw that the budget binds (rare: 0.1% at the defaults on square
+    images), or whose quad or pole needs a look, takes the array path."""
+    h, w = shape
+    d = draws[0].tolist()
+    src = ((-0.5, -0.5), (w - 0.5, -0.5), (w - 0.5, h - 0.5), (-0.5, h - 0.5))
+    if d[8] < p:
+        size = (float(w), float(h))
+        dst = tuple(tuple(c[k] + (2 * d[2 * i + k] - 1) * max_corner_shift * size[k] for k in (0, 1))
+                    for i, c in enumerate(src))
+    else:
+        dst = src
+    if _convex_corners(dst):
+        try:
+            f = FPI(np.array(src), np.array(dst))
+        except FpiwarpError:
+            f = None
+        if f is not None and f.K <= max_distortion:
+            pole = f.pole
+            on_image = pole is not None and abs(pole[0] - (w - 1) / 2) <= w / 2 + 1 and \
+                abs(pole[1] - (h - 1) / 2) <= h / 2 + 1
+            if not on_image:
+                return f
+    return random_fpis(draws, shape, max_distortion, max_corner_shift, p)[0]
+
+
+def _convex_corners(corners):
+    """A quad of 4 (x, y) tuples strictly convex, counter-clockwise on screen (as :func:`_convex`)."""
+    for i in range(4):
+        (ax, ay), (bx, by), (cx, cy) = corners[i], corners[(i + 1) % 4], corners[(i + 2) % 4]
+        if not (bx - ax) * (cy - by) - (by - ay) * (cx - bx) > 0:
+            return False
+    return True
 
 
 def _convex(w):

@@ -100,6 +100,7 @@ class RandomFPI(v2.Transform):
         return self.aug.rng.random((1, DRAWS))
 
     def make_params(self, flat_inputs):
+        """``{"transform": FPI or None}``: the sample's map for its size (None: left as it is)."""
         hw = v2.query_size(flat_inputs)
         draws = self._draws()
         if draws[0, -1] >= self.aug.p:
@@ -107,6 +108,7 @@ class RandomFPI(v2.Transform):
         return {"transform": self.aug.maps_from_draws(draws, hw, p=1.0)[0]}
 
     def transform(self, inpt, params):
+        """One input of the sample through the sample's map (see the module's docstring)."""
         f = params["transform"]
         if f is None:
             return inpt
