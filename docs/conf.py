@@ -11,6 +11,11 @@ from pathlib import Path
 
 import fpiwarp
 
+try:  # before the gallery makes GL contexts: loading triton (torchvision imports it, and autodoc imports
+    import torchvision  # noqa: F401  fpiwarp.augment.torchvision) after Mesa's llvmpipe crashes the process
+except ImportError:
+    pass
+
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # benchmarks/ for the gallery's comparison methods
 sys.path.insert(0, str(ROOT / "docs"))  # gallery_order
