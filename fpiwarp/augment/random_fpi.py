@@ -99,7 +99,7 @@ class RandomFPI:
         one (an FPI) when ``n`` is None, for (H, W) images."""
         draws = self.rng.random((1 if n is None else n, DRAWS))
         if n is None:
-            return one_random_fpi(draws, _hw(shape), self.max_distortion, self.max_corner_shift, self.p)
+            return one_random_fpi(draws, image_size(shape), self.max_distortion, self.max_corner_shift, self.p)
         return self.maps_from_draws(draws, shape)
 
     def maps_from_draws(self, draws, shape, p=None):
@@ -107,7 +107,7 @@ class RandomFPI:
         last the probability's, ``p`` None: this transform's) for (H, W)
         images: how the adapters turn their library's random numbers into
         this transform's maps."""
-        return random_fpis(np.asarray(draws, np.float64).reshape(-1, DRAWS), _hw(shape), self.max_distortion,
+        return random_fpis(np.asarray(draws, np.float64).reshape(-1, DRAWS), image_size(shape), self.max_distortion,
                            self.max_corner_shift, self.p if p is None else p)
 
     def apply_to_image(self, f, image):
@@ -129,7 +129,7 @@ class RandomFPI:
         ref = next((a for a in (image, mask) if a is not None), None)
         if ref is None and shape is None:
             raise ArgumentError("give an image or a mask (or shape=(H, W) for annotations alone)")
-        hw = _hw(shape if ref is None else _spatial(ref))
+        hw = image_size(shape if ref is None else _spatial(ref))
         f = self.sample(hw)
         out = {"transform": f}
         if image is not None:
@@ -173,7 +173,7 @@ class RandomFPI:
             raise ArgumentError("batch needs images or masks (stacks of the same size)")
         dims = tuple(ref.shape)
         n = int(dims[0])
-        hw = _hw(dims[2:4] if channels == "first" and len(dims) == 4 else dims[1:3])
+        hw = image_size(dims[2:4] if channels == "first" and len(dims) == 4 else dims[1:3])
         stack = self.sample(hw, n)
         out = {"transform": stack}
         if images is not None:
@@ -213,7 +213,8 @@ def _spatial(array):
     return shape[:2]
 
 
-def _hw(shape):
+def image_size(shape):
+    """(H, W) of an image's size as ints, or a one-line ArgumentError."""
     h, w = (int(v) for v in shape)
     if h <= 0 or w <= 0:
         raise ArgumentError(f"image size must be positive, got {shape}")

@@ -33,7 +33,7 @@ import numpy as np
 from ..batch.images import warp_batch
 from ..errors import ArgumentError, FpiwarpError
 from ..maps.local import LocalDeformation
-from .random_fpi import RandomFPI, _hw
+from .random_fpi import RandomFPI, image_size
 from .sampling import MAX_CORNER_SHIFT
 
 #: Uniform draws per sample: region size (2) and place (2), region corners
@@ -103,7 +103,7 @@ class RandomLocal(RandomFPI):
     def sample(self, shape, n=None):
         """The maps of the next ``n`` samples (a list), or of the next one
         when ``n`` is None, for (H, W) images."""
-        hw = _hw(shape)
+        hw = image_size(shape)
         draws = self.rng.random((1 if n is None else n, DRAWS))
         maps = [self.map_from_draw(d, hw) for d in draws]
         return maps[0] if n is None else maps
@@ -147,7 +147,7 @@ class RandomLocal(RandomFPI):
         if ref is None:
             raise ArgumentError("batch needs images or masks (stacks of the same size)")
         dims = tuple(ref.shape)
-        hw = _hw(dims[2:4] if channels == "first" and len(dims) == 4 else dims[1:3])
+        hw = image_size(dims[2:4] if channels == "first" and len(dims) == 4 else dims[1:3])
         maps = self.sample(hw, int(dims[0]))
         out = {"transform": maps}
         if images is not None:
