@@ -147,3 +147,22 @@ def test_the_docstring_examples_run():
 
     result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     assert result.attempted > 0 and result.failed == 0
+
+
+def test_the_device_path_equals_the_host_path(warp_backend):
+    """The path of tensors off the CPU (warped where they live through
+    fpiwarp.arrays), run here on CPU tensors through Warp's DLPack path."""
+    import torch
+
+    from fpiwarp.augment.torchvision import RandomFPI as TorchvisionFPI
+
+    t = TorchvisionFPI(max_corner_shift=0.2, seed=6, backend="warp")
+    f = RandomFPI(max_corner_shift=0.2, seed=6).sample((24, 32))
+    rng = np.random.default_rng(1)
+    images = torch.from_numpy(rng.integers(0, 256, (2, 5, 24, 32)).astype(np.uint8))
+    masks = torch.from_numpy(rng.integers(-4, 4, (3, 24, 32)).astype(np.int64))
+    for x, mask in ((images, False), (masks, True)):
+        device = t._device_planes(x, f, mask)
+        host = t._planes(x, f, mask)
+        assert device.shape == x.shape and device.dtype == x.dtype
+        np.testing.assert_array_equal(device.numpy(), host.numpy())
