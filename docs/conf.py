@@ -11,8 +11,9 @@ import sys
 from pathlib import Path
 
 # The gallery runs every example in this process: load Triton (PyPI's torch
-# brings it) before any example loads Mesa's LLVM through the gl backend, or
-# torch's lazy import of Triton crashes (see docs/guides/autodiff.rst).
+# brings it; torchvision and fpiwarp.augment.torchvision import it) before any
+# example loads Mesa's LLVM through the gl backend, or torch's lazy import of
+# Triton crashes the process (see docs/guides/autodiff.rst).
 if importlib.util.find_spec("triton") is not None:
     import triton  # noqa: F401
 

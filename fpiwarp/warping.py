@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .arrays import array_info, dispatch
+from .arrays import array_info, dispatch, labels
 from .backends import backend_capabilities, get_backend
 from .backends.protocol import bind
 from .errors import ArgumentError
@@ -213,6 +213,10 @@ def warp_image(
     >>> fpiwarp.warp_image(img, f, output_shape=(4, 5)).shape
     (4, 5)
     """
+    if labels.label_dtype(image) is not None:  # bool and integer labels: order 0 through a carrier
+        return labels.warp_labels(warp_image, image, transform, output_shape, batch=False, order=order, mode=mode,
+                                  cval=cval, backend=backend, backend_options=backend_options, antialias=antialias,
+                                  out=out, channels=channels)
     if out is not None or channels != "last" or not _on_host(image):
         return dispatch.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
                                    backend=backend, backend_options=backend_options, antialias=antialias, out=out,
@@ -288,8 +292,9 @@ class Warper:
         return self._bound
 
     def __call__(self, image):
-        if not isinstance(image, np.ndarray) and array_info(image).kind != "host":
-            # a device array (fpiwarp.arrays): warped in place on this warper's backend
+        if labels.label_dtype(image) is not None or not isinstance(image, np.ndarray) and \
+                array_info(image).kind != "host":
+            # a label image (fpiwarp.arrays.labels) or a device array (fpiwarp.arrays): warp_image as it is
             return warp_image(image, self.transform, self.output_shape, order=self.order, mode=self.mode,
                               cval=self.cval, backend=self.backend, backend_options=self.options,
                               antialias=self.antialias)

@@ -25,6 +25,7 @@ from ..arrays.dispatch import (
 from ..arrays.kinds import array_info, choose_backend
 from ..arrays.outputs import check_host_out, copy_points_out, overlap_error
 from ..backends import backend_capabilities, check_backend_name
+from ..block.many import is_many_maps
 from ..errors import ArgumentError, ArgumentTypeError
 from ..maps.transform import Transform
 from ..validation import check_map_size, check_transform
@@ -36,7 +37,7 @@ def map_list(transforms, n, what="images"):
     """The maps as a list of 1 or ``n``, else ArgumentError naming ``transforms``."""
     if isinstance(transforms, Transform):
         return [transforms]
-    maps = list(transforms)
+    maps = transforms if is_many_maps(transforms) else list(transforms)
     if len(maps) != n:
         raise ArgumentError(f"got {len(maps)} maps in transforms for {n} {what}; give one map or one per image")
     return maps
@@ -57,6 +58,8 @@ def check_maps(maps, hwc, dtype, output_shape, order, mode, cval, backend, antia
     mode, cval, options, the maps as the backend reads them)."""
     *first, inverted = check_device_warp(hwc, dtype, maps[0], output_shape, order, mode, cval, backend, None,
                                          antialias, "images")
+    if is_many_maps(maps):  # an FPIStack: FPIs of one stage, checked when built; its blocks packed in one pass
+        return (*first, maps)
     caps = backend_capabilities(backend)
     rest = []
     for t in maps[1:]:

@@ -26,7 +26,9 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..arrays import labels
 from ..backends import get_backend
+from ..block.many import is_many_maps
 from ..errors import ArgumentError
 from ..io.images import read_image
 from ..maps.transform import Transform
@@ -176,6 +178,9 @@ def warp_batch(
     >>> fpiwarp.warp_batch(stack, maps).shape
     (3, 4, 5, 3)
     """
+    if labels.label_dtype(images) is not None:  # bool and integer labels: order 0 through a carrier
+        return labels.warp_labels(warp_batch, images, transforms, output_shape, batch=True, order=order, mode=mode,
+                                  cval=cval, backend=backend, antialias=antialias, out=out, channels=channels)
     if not isinstance(images, np.ndarray) or out is not None or channels != "last":
         from . import arrays as batch_path  # noqa: PLC0415 - device arrays, out= and layouts
 
@@ -188,7 +193,8 @@ def warp_batch(
         raise ArgumentError(f"images must be a non-empty (N, H, W) or (N, H, W, C) array, got shape {stack.shape}")
     first, squeeze = check_image(stack[0], name="images")
     n, (h, w, c) = stack.shape[0], first.shape
-    maps = [transforms] if isinstance(transforms, Transform) else list(transforms)
+    many = is_many_maps(transforms)  # an FPIStack: one object, its blocks packed in one pass
+    maps = [transforms] if isinstance(transforms, Transform) else transforms if many else list(transforms)
     if not isinstance(transforms, Transform) and len(maps) != n:
         raise ArgumentError(f"got {len(maps)} maps for {n} images; give one map or one per image")
     lead = Warper(maps[0], output_shape, order=order, mode=mode, cval=cval, backend=backend, antialias=antialias)
@@ -197,14 +203,16 @@ def warp_batch(
         # stage count per map (a Warper per map cost ~40 % of a batch of small images).
         checked = check_warp_arguments(first, maps[0], output_shape, order, mode, cval, lead.capabilities, backend,
                                        antialias=antialias)
-        for t in maps[1:]:
+        for t in () if many else maps[1:]:
             check_transform(t, "transforms")
-        if backend in KERNEL_BACKENDS:
+        if many:  # FPIs of one stage each, checked when the stack was built
+            pass
+        elif backend in KERNEL_BACKENDS:
             # Each further map's inverse and its stages computed once, for the check and the block alike.
             from ..arrays.dispatch import Inverted  # noqa: PLC0415 - loaded with the first batch
 
             maps = [maps[0], *(Inverted(t) for t in maps[1:])]
-        for t in maps[1:]:
+        for t in () if many else maps[1:]:
             check_map_size(t.inverse, lead.capabilities, backend)
         out = get_backend(backend).warp_batch(
             np.ascontiguousarray(stack.reshape(n, h, w, c)),

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .describe import describe
-from .layout import LAYOUT_VERSION, MAX_STAGES, ROW_REGIONS, STAGE_ROWS
+from .layout import CORE_AFFINE, LAYOUT_VERSION, MAX_STAGES, ROW_REGIONS, STAGE_ROWS
 from .pack import check_stage, fixed_values, write_tables
 
 #: Rows 0 .. FIXED_ROWS - 1 of a stage, which every stage fills (:func:`fixed_values`).
@@ -50,6 +50,21 @@ def pack_many(stage_lists):
     return out.astype(np.float32)
 
 
+def is_many_maps(transforms):
+    """Whether ``transforms`` is one object holding many maps as arrays (a
+    :class:`fpiwarp.maps.fpi.FPIStack`: ``block_stack()`` and ``inverse``)
+    rather than a sequence of map objects."""
+    return hasattr(transforms, "block_stack")
+
+
+def inverses(transforms):
+    """The inverses of a batch's maps as :meth:`BlockStack.of` takes them:
+    the many-maps object's ``inverse`` (no object per map), or a list."""
+    if is_many_maps(transforms):
+        return transforms.inverse
+    return [t.inverse for t in transforms]
+
+
 @dataclass(frozen=True)
 class BlockStack:
     """Stacked float32 blocks of N maps: ``array`` (N, rows, 4), block
@@ -62,6 +77,8 @@ class BlockStack:
     def of(cls, transforms):
         """The blocks of ``transforms`` (anything with ``stages()``: maps,
         or the inverse blocks the batch paths compute once)."""
+        if is_many_maps(transforms):  # e.g. fpiwarp.maps.fpi.FPIStack: packed in one pass by the maps themselves
+            return transforms.block_stack()
         array = pack_many([t.stages() for t in transforms])
         return cls(array, 1 + STAGE_ROWS * array[:, 0, 0].astype(np.int64))
 
@@ -109,3 +126,48 @@ class BlockStack:
             k = key(describe(self.array[i, : self.rows[i]]))
             found.setdefault(k, []).append(u)
         return [(k, np.flatnonzero(np.isin(inverse, us)).astype(np.int32)) for k, us in found.items()]
+
+
+def pack_one_stage(pre_center, pre_pole, pre_scale, post_scale, post_pole, post_offset, l1, l2, l3):
+    """The blocks of N one-stage affine-core maps from their parts as
+    complex arrays (N,) (the :class:`~fpiwarp.block.Stage` fields
+    ``pre.center``, ``pre.inverse_pole``, ``pre.scale``, ``post.scale``,
+    ``post.inverse_pole``, ``post.offset``, ``linear.l1/l2/l3``), written
+    in one pass without a Stage per map: a :class:`BlockStack` whose block
+    ``i`` equals ``pack([Stage(...)])`` of map i's parts (the Newton seed
+    row, the R-linear inverse, in the vectorised form of
+    :func:`fpiwarp.block.pack.rlinear_inverse`, within 1 float32 ulp).
+    Raises ValueError for a singular or non-finite R-linear part."""
+    parts = [np.asarray(v, dtype=np.complex128).reshape(-1) for v in
+             (pre_center, pre_pole, pre_scale, post_scale, post_pole, post_offset, l1, l2, l3)]
+    n = len(parts[0])
+    m1, m2, m3 = rlinear_inverse_many(parts[6], parts[7], parts[8])
+    out = np.zeros((n, 1 + STAGE_ROWS, 4), dtype=np.float32)  # float64 values rounded once, as pack() does
+    out[:, 0, 0], out[:, 0, 1] = 1, LAYOUT_VERSION
+    fixed = out[:, 1:1 + FIXED_ROWS].reshape(n, FIXED_ROWS * 2, 2)  # (re, im) pairs in row order
+    # rows: header, pre (center, pole), scales (pre, post), post (pole, offset), (l1, l2), (l3, tol 0), mu12, mu3
+    pairs = (None, None, parts[0], parts[1], parts[2], parts[3], parts[4], parts[5], parts[6], parts[7], parts[8],
+             None, m1, m2, m3, None)
+    for k, v in enumerate(pairs):
+        if v is not None:
+            fixed[:, k, 0], fixed[:, k, 1] = v.real, v.imag
+    out[:, 1, 0] = CORE_AFFINE  # the stage's header: no centers, regions or Newton iterations
+    return BlockStack(out, np.full(n, 1 + STAGE_ROWS, dtype=np.int64))
+
+
+def rlinear_inverse_many(l1, l2, l3):
+    """:func:`fpiwarp.block.pack.rlinear_inverse` of N R-linear parts
+    (complex arrays): (m1, m2, m3); ValueError where one is singular,
+    not finite or its |l1|² - |l2|² leaves float64's normal range."""
+    a, b = np.abs(l1), np.abs(l2)
+    with np.errstate(all="ignore"):
+        det = a * a - b * b
+        bad = ~(np.isfinite(l1) & np.isfinite(l2) & np.isfinite(l3)) | (np.abs(a - b) <= 1e-14 * (a + b)) | \
+            ~(np.abs(det) < np.inf) | (np.abs(det) < np.finfo(np.float64).tiny)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"R-linear part {i} ({l1[i]}, {l2[i]}, {l3[i]}) cannot be inverted: singular, not finite or "
+                         "|l1|² - |l2|² outside float64's normal range")
+    m1 = np.conj(l1) / det
+    m2 = -l2 / det
+    return m1, m2, -(m1 * l3 + m2 * np.conj(l3))

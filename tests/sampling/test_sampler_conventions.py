@@ -91,7 +91,8 @@ def test_pixels_near_the_pole_get_cval_never_nan():
     "kwargs, error, match",
     [
         ({"image": np.zeros((4, 4), np.float64)}, TypeError, "float32"),
-        ({"image": np.zeros((4, 4), np.int32)}, TypeError, "dtype"),
+        ({"image": np.zeros((4, 4), np.float16)}, TypeError, "dtype"),
+        ({"image": np.zeros((4, 4), np.int32)}, ValueError, "label image: it warps at order 0 only"),
         ({"image": np.zeros((4, 4, 5), np.uint8)}, ValueError, "C in 1..4"),
         ({"image": [[1, 2]]}, TypeError, "numpy array"),
         ({"order": 2}, ValueError, "order"),

@@ -4,7 +4,7 @@ mesh path as a function of the public API (:func:`warp_image_mesh`)."""
 import numpy as np
 
 from ...block import describe
-from ...block.many import BlockStack
+from ...block.many import BlockStack, inverses
 from ...validation import check_cval, check_image, check_map_size, check_output_shape, check_sizes, check_warp_options
 from .context import check_thread, shared_context
 from .warper import GLWarper
@@ -55,7 +55,7 @@ class Backend:
         from .batch import warp_batch  # noqa: PLC0415 - loaded with the first batch
 
         check_thread()
-        blocks = BlockStack.of([t.inverse for t in transforms])
+        blocks = BlockStack.of(inverses(transforms))
         return warp_batch(self.warper, stack, blocks, output_shape, order=order, mode=mode, cval=cval,
                           antialias=antialias)
 

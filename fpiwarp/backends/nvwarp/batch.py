@@ -32,7 +32,7 @@ copied in, warped and copied out, one after the other (``transfer=
 import numpy as np
 
 from ...block import describe
-from ...block.many import BlockStack
+from ...block.many import BlockStack, inverses
 from ...block.sampling_rules import MODES
 
 #: Bytes of input plus output of one chunk of a host stack on CUDA.
@@ -153,7 +153,7 @@ class BatchRunner:
         cv[:c] = cval
         cval4 = wp.vec4(*cv.tolist())
         if antialias:  # the generic kernel, as for one image
-            blocks = stacked_blocks([t.inverse for t in transforms])
+            blocks = stacked_blocks(inverses(transforms))
             tail = [int(order), MODES.index(mode), cval4, _TOP[dtype]]
             self.launch(self.k.batch_antialias, n * oh, ow,
                         [self._array(blocks, wp.vec4), self._which(blocks, 0, n), src, dst, *tail])
@@ -162,7 +162,7 @@ class BatchRunner:
 
         rows = (row_view(wp, src), row_view(wp, dst))  # images as row offsets, where the strides allow
         strided = None in rows
-        for key, blocks, images in kind_groups([t.inverse for t in transforms], n):
+        for key, blocks, images in kind_groups(inverses(transforms), n):
             step = int(len(blocks) > 1)
             head = [self._array(blocks, wp.vec4), self._array(images, wp.int32)]
             inputs = [*head, src, dst, step, cval4] if strided else [*head, *rows, h, oh, step, cval4]

@@ -49,7 +49,7 @@ import weakref
 import numpy as np
 
 from ...block import describe
-from ...block.many import BlockStack
+from ...block.many import BlockStack, inverses
 from .tiles import global_size, tiled_program
 
 #: Bytes of input plus output one chunk of a batch holds at most (each
@@ -152,7 +152,7 @@ class BatchLaunch:
         cl = self.cl = _cl()
         n, self.h, self.w, c = stack_shape
         self.backend, (self.oh, self.ow) = backend, output_shape
-        self.groups = block_groups([t.inverse for t in transforms], n, backend.kind_options)
+        self.groups = block_groups(inverses(transforms), n, backend.kind_options)
         self.sampling = (dtype, c, order, mode, self.ow, antialias)
         self.cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self.keep = []  # the launches' block and index buffers, alive as long as this object
