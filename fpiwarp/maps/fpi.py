@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..block import LinearPart, MobiusPart, Stage
+from ..block.many import pack_one_stage, rlinear_inverse_many
 from ..errors import ArgumentError, DegenerateQuadError, IllConditionedPairError
 from .mobius import Mobius, centered_at_zero
 from .points import as_xy
@@ -398,7 +399,6 @@ class FPIStack(Sequence):
     def inverse(self):
         """The stack of the inverses (the FPIs from dst to src)."""
         qs, ss, als, l1, l2, l3, qd, sd, ald = self._parts
-        from ..block.many import rlinear_inverse_many  # noqa: PLC0415
 
         m1, m2, m3 = rlinear_inverse_many(l1, l2, l3)
         return FPIStack(self._w, self._z, (qd, sd, ald, m1, m2, m3, qs, ss, als))
@@ -408,7 +408,6 @@ class FPIStack(Sequence):
         """(N,) complex: the point each map sends to infinity (z∞ of
         :attr:`fpiwarp.FPI.pole`), NaN where the map is affine (no pole)."""
         qs, ss, als, l1, l2, l3, qd, sd, ald = self._parts
-        from ..block.many import rlinear_inverse_many  # noqa: PLC0415
 
         m1, m2, m3 = rlinear_inverse_many(l1, l2, l3)
         with np.errstate(all="ignore"):
@@ -438,7 +437,6 @@ class FPIStack(Sequence):
     def block_stack(self):
         """The maps' float32 parameter blocks (one stage each) as a
         ``fpiwarp.block.many.BlockStack``, packed in one pass."""
-        from ..block.many import pack_one_stage  # noqa: PLC0415
 
         qs, ss, als, l1, l2, l3, qd, sd, ald = self._parts
         # the stage of FPI.stages(): pre = m_src (beta 0), post = m_dst⁻¹ centered at 0 (m_dst's beta is 0)
