@@ -206,7 +206,7 @@ def _api_cases(f, root):
     add("masked arrays", "warp_image", lambda: w(masked, fpi))
     add("masked arrays", "Warper", lambda: Warper(fpi)(masked))
     add("masked arrays", "warp_batch", lambda: fpiwarp.warp_batch(np.ma.stack([masked, masked]), fpi))
-    add("masked arrays", "warp_images", lambda: fpiwarp.warp_images([masked], fpi))
+    add("masked arrays", "warp_images", lambda: list(fpiwarp.warp_images([masked], fpi)))
     add("masked arrays", "write_image", lambda: fpiwarp.write_image(root / "masked.png", masked))
     add("swapped arguments", "write_image(array, path)", lambda: fpiwarp.write_image(img, root / "swap.png"))
     add("swapped arguments", "write_image(big array, path)",

@@ -27,6 +27,7 @@ from .validation import (
     check_transform,
     check_warp_arguments,
     check_warp_options,
+    refuse_masked,
 )
 
 __all__ = ["Warper", "map_points", "warp_image"]
@@ -213,6 +214,7 @@ def warp_image(
     >>> fpiwarp.warp_image(img, f, output_shape=(4, 5)).shape
     (4, 5)
     """
+    refuse_masked(image)
     if out is not None or channels != "last" or not _on_host(image):
         return dispatch.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
                                    backend=backend, backend_options=backend_options, antialias=antialias, out=out,
@@ -288,6 +290,7 @@ class Warper:
         return self._bound
 
     def __call__(self, image):
+        refuse_masked(image)
         if not isinstance(image, np.ndarray) and array_info(image).kind != "host":
             # a device array (fpiwarp.arrays): warped in place on this warper's backend
             return warp_image(image, self.transform, self.output_shape, order=self.order, mode=self.mode,

@@ -30,7 +30,7 @@ from ..backends import get_backend
 from ..errors import ArgumentError
 from ..io.images import read_image
 from ..maps.transform import Transform
-from ..validation import check_image, check_map_size, check_transform, check_warp_arguments
+from ..validation import check_image, check_map_size, check_transform, check_warp_arguments, refuse_masked
 from ..warping import Warper
 from .folders import BatchSummary, list_inputs, run_batch
 from .progress import Progress
@@ -45,6 +45,7 @@ __all__ = ["BatchSummary", "Progress", "Warper", "list_inputs", "run_batch", "wa
 def _as_image(item):
     if isinstance(item, (str, os.PathLike)):
         return read_image(item)
+    refuse_masked(item)
     return item
 
 
@@ -105,6 +106,9 @@ def warp_images(
     """
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
                     backend_options=backend_options, antialias=antialias)
+    if isinstance(images, (list, tuple)):  # refused now, not at the first next()
+        for item in images:
+            refuse_masked(item)
     return (warper(_as_image(item)) for item in images)
 
 
@@ -176,6 +180,7 @@ def warp_batch(
     >>> fpiwarp.warp_batch(stack, maps).shape
     (3, 4, 5, 3)
     """
+    refuse_masked(images, "images")
     if not isinstance(images, np.ndarray) or out is not None or channels != "last":
         from . import arrays as batch_path  # noqa: PLC0415 - device arrays, out= and layouts
 

@@ -82,7 +82,15 @@ from numpy.typing import ArrayLike
 
 from ..block import Region, Stage
 from ..errors import ArgumentError, ConstraintError
-from .constrained import EDGE_BOUND, ConstrainedFPI, _xy, as_mobius, edge_similarity, normalize_edges, shared_similarity
+from .constrained import (
+    EDGE_BOUND,
+    ConstrainedFPI,
+    as_mobius,
+    as_xy,
+    edge_similarity,
+    normalize_edges,
+    shared_similarity,
+)
 from .quad import check_quad_pair, signed_area
 from .transform import Transform
 
@@ -292,7 +300,7 @@ class LocalDeformation(Transform):
         if construction not in CONSTRUCTIONS:
             raise ArgumentError(f"construction must be one of {CONSTRUCTIONS}, got {construction!r}")
         z, w, _ = check_quad_pair(src, dst)
-        roi = (_xy(z), _xy(w))
+        roi = (as_xy(z), as_xy(w))
         norm, kind = normalize_edges(edges)
         fit_z, fit_w, pins, lengths = z, w, None, None
         if construction == "continuous":
@@ -307,7 +315,7 @@ class LocalDeformation(Transform):
             # the edge bound relative to the extended edges (the lines' lengths in the picture): on a
             # 60-px edge of a 640-px picture, relative to the ROI's edges it is out of reach (1.7e-3)
         inner = ConstrainedFPI(
-            _xy(fit_z), _xy(fit_w), edges=norm, points_per_edge=points_per_edge, delta=delta, spacing=spacing,
+            as_xy(fit_z), as_xy(fit_w), edges=norm, points_per_edge=points_per_edge, delta=delta, spacing=spacing,
             pinned=pins, deviation_lengths=lengths,
         )
         z, w = inner._z, inner._w
