@@ -171,7 +171,8 @@ def _interlaced_short(png):
             if px:
                 out += b"\0" + b"".join(px)
     ihdr[12] = 1
-    data = zlib.compress(bytes(out))[: len(out) // 3]
+    packed = zlib.compress(bytes(out))
+    data = packed[: len(packed) // 3]
 
     def chunk(t, p):
         return struct.pack(">I", len(p)) + t + p + struct.pack(">I", zlib.crc32(t + p))
