@@ -35,6 +35,7 @@ __all__ = [
     "MissingDependencyError",
     "OutputExistsError",
     "OutputIsFolderError",
+    "OutputIsSpecialFileError",
     "SizeLimitError",
     "SpecError",
     "ThreadOwnershipError",
@@ -137,6 +138,20 @@ class OutputIsFolderError(FpiwarpError, IsADirectoryError):
     def __str__(self):
         example = Path(self.filename) / "out.png"
         return f"{self.filename} is a folder; give the output a file name (such as {example})"
+
+
+class OutputIsSpecialFileError(FpiwarpError, FileExistsError):
+    """The output path names something that is not a regular file (a FIFO,
+    a character or block device such as /dev/null, a socket, or a symbolic
+    link to one): fpiwarp never replaces it, with or without overwriting."""
+
+    def __init__(self, path, kind):
+        super().__init__(errno.EEXIST, f"the output is {kind}, not a regular file", str(path))
+        self.kind = kind
+
+    def __str__(self):
+        return (f"{self.filename} is {self.kind}, not a regular file; fpiwarp never replaces it "
+                "(even with overwrite): give the output another name")
 
 
 class SpecError(FpiwarpError, ValueError):

@@ -48,12 +48,40 @@ __all__ = [
     "check_warp_arguments",
     "check_warp_options",
     "physical_memory",
+    "refuse_masked",
+    "short_repr",
 ]
 
 #: Largest |cval|: cubic interpolation sums up to about 1.6 × cval in
 #: float32 arithmetic on the device backends, which stays below float32's
 #: maximum (3.4e38) from here on down.
 CVAL_LIMIT = 1e38
+
+
+def short_repr(value, limit=60):
+    """A repr of a user's value short enough for a one-line message: an
+    array is described by its type, shape and dtype, anything else cut to
+    ``limit`` characters."""
+    if hasattr(value, "shape") and hasattr(value, "dtype") and getattr(value, "ndim", 0) > 0:
+        return f"{type(value).__name__} of shape {tuple(value.shape)} and dtype {value.dtype}"
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 - a broken __repr__ must not hide the real message
+        text = f"<{type(value).__name__}>"
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def refuse_masked(value, name="image"):
+    """Refuse a ``numpy.ma.MaskedArray``: fpiwarp warps the stored values of
+    every pixel and has no notion of a mask, so the mask would be lost
+    without a word. The message says how to choose what the masked pixels are."""
+    if isinstance(value, np.ma.MaskedArray):
+        raise ArgumentTypeError(
+            f"{name} is a numpy.ma.MaskedArray, whose mask fpiwarp cannot honour: pass {name}.filled(value) "
+            f"to give the masked pixels a value, or {name}.data to warp the stored values (and warp the mask, "
+            f"{name}.mask, as its own image at order=0 if you need it)"
+        )
 
 
 def check_transform(transform, name="transform"):
@@ -69,32 +97,33 @@ def _integer(value, name):
     """``value`` as a Python int when it is an integer or an integral
     float; ArgumentTypeError for other types, ArgumentError otherwise."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ArgumentTypeError(f"{name} must be an integer, got {type(value).__name__} {value!r}")
+        raise ArgumentTypeError(f"{name} must be an integer, got {type(value).__name__} {short_repr(value)}")
     if isinstance(value, numbers.Integral):
         return int(value)
     if not np.isfinite(value) or float(value) != int(value):
-        raise ArgumentError(f"{name} must be an integer, got {value!r}")
+        raise ArgumentError(f"{name} must be an integer, got {short_repr(value)}")
     return int(value)
 
 
 def check_order(order):
     """The interpolation order as a Python int among :data:`ORDERS`."""
     if isinstance(order, (bool, np.bool_)) or not isinstance(order, numbers.Real):
-        raise ArgumentError(f"order must be one of {ORDERS}, got {order!r}")
+        raise ArgumentError(f"order must be one of {ORDERS}, got {short_repr(order)}")
     if order not in ORDERS:
-        raise ArgumentError(f"order must be one of {ORDERS}, got {order!r}")
+        raise ArgumentError(f"order must be one of {ORDERS}, got {short_repr(order)}")
     return int(order)
 
 
 def check_mode(mode):
     """The border mode, one of :data:`MODES`."""
     if not isinstance(mode, str) or mode not in MODES:
-        raise ArgumentError(f"mode must be one of {MODES}, got {mode!r}")
+        raise ArgumentError(f"mode must be one of {MODES}, got {short_repr(mode)}")
     return mode
 
 
 def check_image(image, name="image"):
     """Validate an image; return it as (H, W, C) and whether it was 2-D."""
+    refuse_masked(image, name)
     if not isinstance(image, np.ndarray):
         raise ArgumentTypeError(f"{name} must be a numpy array, got {type(image).__name__}")
     if image.dtype not in DTYPES:
@@ -117,7 +146,7 @@ def check_output_shape(output_shape, image):
         if image is None:
             raise ArgumentError("output_shape must be given as (rows, cols)")
         return tuple(image.shape[:2])
-    problem = f"output_shape must be (rows, cols) positive integers, got {output_shape!r}"
+    problem = f"output_shape must be (rows, cols) positive integers, got {short_repr(output_shape)}"
     try:
         oh, ow = output_shape
     except (TypeError, ValueError):
@@ -127,7 +156,7 @@ def check_output_shape(output_shape, image):
     except (ArgumentError, ArgumentTypeError):
         raise ArgumentError(problem) from None
     if oh <= 0 or ow <= 0:
-        raise ArgumentError(f"output_shape must be positive, got {output_shape!r}")
+        raise ArgumentError(f"output_shape must be positive, got {short_repr(output_shape)}")
     return oh, ow
 
 
@@ -145,7 +174,7 @@ def check_cval(cval, channels, dtype=None):
         if dtype is not None and np.dtype(dtype).kind == "u":
             value = min(max(value, 0.0), float(np.iinfo(dtype).max))
         return np.full(channels, value)
-    problem = f"cval must be a finite number or one per channel ({channels}), got {cval!r}"
+    problem = f"cval must be a finite number or one per channel ({channels}), got {short_repr(cval)}"
     try:
         arr = np.asarray(cval, dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
@@ -157,7 +186,7 @@ def check_cval(cval, channels, dtype=None):
     elif np.any(np.abs(arr) > CVAL_LIMIT):
         raise ArgumentError(
             f"cval must lie within ±{CVAL_LIMIT:g} for float32 images (float32 interpolation would "
-            f"overflow), got {cval!r}"
+            f"overflow), got {short_repr(cval)}"
         )
     return np.broadcast_to(arr, (channels,)).copy()
 
@@ -271,13 +300,14 @@ def check_backend_options(options, capabilities, backend, order, mode):
             value = bool(value)
         if not isinstance(value, opt.kind) or (opt.kind is not bool and isinstance(value, bool)):
             raise ArgumentTypeError(
-                f"backend_options[{name!r}] must be a {opt.kind.__name__}, got {type(value).__name__} {value!r}"
+                f"backend_options[{name!r}] must be a {opt.kind.__name__}, "
+                f"got {type(value).__name__} {short_repr(value)}"
             )
         if value:
             if opt.orders is not None and order not in opt.orders:
                 raise ArgumentError(f"backend_options[{name!r}] supports order {opt.orders}, got {order}")
             if opt.modes is not None and mode not in opt.modes:
-                raise ArgumentError(f"backend_options[{name!r}] supports modes {opt.modes}, got {mode!r}")
+                raise ArgumentError(f"backend_options[{name!r}] supports modes {opt.modes}, got {short_repr(mode)}")
         checked[name] = value
     return checked
 

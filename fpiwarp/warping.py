@@ -27,6 +27,7 @@ from .validation import (
     check_transform,
     check_warp_arguments,
     check_warp_options,
+    refuse_masked,
 )
 
 __all__ = ["Warper", "map_points", "warp_image"]
@@ -213,6 +214,7 @@ def warp_image(
     >>> fpiwarp.warp_image(img, f, output_shape=(4, 5)).shape
     (4, 5)
     """
+    refuse_masked(image)
     if labels.label_dtype(image) is not None:  # bool and integer labels: order 0 through a carrier
         return labels.warp_labels(warp_image, image, transform, output_shape, batch=False, order=order, mode=mode,
                                   cval=cval, backend=backend, backend_options=backend_options, antialias=antialias,
@@ -292,6 +294,7 @@ class Warper:
         return self._bound
 
     def __call__(self, image):
+        refuse_masked(image)
         if labels.label_dtype(image) is not None or not isinstance(image, np.ndarray) and \
                 array_info(image).kind != "host":
             # a label image (fpiwarp.arrays.labels) or a device array (fpiwarp.arrays): warp_image as it is

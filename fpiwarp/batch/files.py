@@ -20,6 +20,7 @@ class FileOptions:
 
     overwrite: bool = False
     orientation: str = "apply"
+    damaged: str = "refuse"
 
 
 def reason_of(exc):
@@ -36,17 +37,18 @@ FILE_ERRORS = (FpiwarpError, OSError)
 
 
 def process_file(src, dst, warper, options):
-    """Read, warp and write one file; return (status, input path, reason)."""
+    """Read, warp and write one file; return (status, input path, reason,
+    (width, height) of the input when it was warped)."""
     try:
         if not options.overwrite and dst.is_file():
             return "skipped", str(src), None
-        image, info = read_image(src, orientation=options.orientation, with_info=True)
+        image, info = read_image(src, orientation=options.orientation, with_info=True, damaged=options.damaged)
         dtype, channels = image.dtype, (1 if image.ndim == 2 else image.shape[2])
         check_writable(dst, dtype, channels, info)
         out = warper(image)
         dst.parent.mkdir(parents=True, exist_ok=True)
         write_image(dst, out, info, overwrite=options.overwrite)
-        return "done", str(src), None
+        return "done", str(src), None, (image.shape[1], image.shape[0])
     except OutputExistsError:
         return "skipped", str(src), None
     except FILE_ERRORS as exc:

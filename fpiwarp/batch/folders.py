@@ -18,9 +18,12 @@ from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from PIL import Image
+
 from ..errors import ArgumentError, FpiwarpError, OutputExistsError
 from ..io.images import TEMP_SUFFIX, check_writable, is_temp_file, read_image, write_image
 from ..io.orientation import check_choice as check_orientation
+from ..io.pillow import check_damaged
 from ..warping import Warper
 from .files import FILE_ERRORS, FileOptions, process_file, reason_of
 
@@ -50,6 +53,11 @@ class BatchSummary:
     interrupted: bool = False
     removed_temps: list = field(default_factory=list)
     recent_temps: list = field(default_factory=list)
+    #: Files of the input folder left out because their extension is not an
+    #: image format's (notes.txt, ...): listed, not failed.
+    ignored: list = field(default_factory=list)
+    #: {input path: (width, height)} of the warped inputs.
+    sizes: dict = field(default_factory=dict)
 
     @property
     def processed(self):
@@ -59,9 +67,11 @@ class BatchSummary:
     def ok(self):
         return not self.failed and not self.interrupted
 
-    def record(self, status, path, reason=None):
+    def record(self, status, path, reason=None, size=None):
         if status == "done":
             self.done.append(path)
+            if size is not None:
+                self.sizes[path] = tuple(size)
         elif status == "skipped":
             self.skipped.append(path)
         else:
@@ -84,6 +94,10 @@ class BatchSummary:
         for path in self.recent_temps:
             lines.append(f"temporary file of a run in progress or just killed: {one_line(path)} "
                          "(delete it if no other run writes to this folder)")
+        lines += self.size_notes()
+        for path in self.ignored:
+            lines.append(f"ignored (not an image file; name it with --pattern or --ext to include it): "
+                         f"{one_line(path)}")
         for path, reason in sorted(self.failed, key=lambda item: str(item[0])):
             prefix = f"{path}: "
             reason = reason[len(prefix):] if reason.startswith(prefix) else reason
@@ -91,10 +105,48 @@ class BatchSummary:
         return lines
 
 
-def list_inputs(input_dir, pattern=None, exclude=None):
+    def size_notes(self):
+        """One line per warped image whose size differs from the first's
+        (in name order): the map's pixel coordinates applied to it as they are."""
+        if len(set(self.sizes.values())) < 2:
+            return []
+        first = min(self.sizes)
+        w0, h0 = self.sizes[first]
+        return [
+            f"size differs: {one_line(path)} is {w}x{h}, {one_line(first)} {w0}x{h0}; the map's pixel "
+            "coordinates were applied as they are (give each size its own spec)"
+            for path, (w, h) in sorted(self.sizes.items()) if (w, h) != (w0, h0)
+        ]
+
+
+def image_extensions():
+    """The file extensions (lower case, with the dot) of the formats Pillow
+    reads, which a folder batch takes by default."""
+    Image.init()
+    return {ext for ext, fmt in Image.registered_extensions().items() if fmt in Image.OPEN}
+
+
+def _extension_set(extensions):
+    if extensions is None:
+        return None
+    if isinstance(extensions, str):
+        extensions = extensions.split(",")
+    out = {("." + e.strip().lstrip(".")).lower() for e in extensions if e.strip().lstrip(".")}
+    if not out:
+        raise ArgumentError(f"extensions must name at least one extension like 'jpg,png', got {extensions!r}")
+    return out
+
+
+def list_inputs(input_dir, pattern=None, exclude=None, extensions=None, ignored=None):
     """Sorted files of ``input_dir`` matching the glob ``pattern`` (default
     every file at the top level; ``**/*`` recurses), without hidden files,
-    fpiwarp's temporary files, and anything under ``exclude``."""
+    fpiwarp's temporary files, and anything under ``exclude``.
+
+    ``extensions`` (a list, or "jpg,png") keeps the files with one of them.
+    Without ``pattern`` and ``extensions``, files whose extension is no
+    image format's (notes.txt, a spec.json) are left out and appended to
+    the list ``ignored`` when given; a pattern or extension that names
+    them explicitly takes them (and they fail if they are not images)."""
     root = Path(input_dir)
     if not root.exists():
         raise FileNotFoundError(f"input folder does not exist: {root}")
@@ -107,20 +159,29 @@ def list_inputs(input_dir, pattern=None, exclude=None):
         excluded_inside = excluded  # an output folder inside the input tree: skip what is in it
     else:
         excluded_inside = None  # the output folder holds the inputs (or is elsewhere): skip nothing
-    found = []
+    wanted = _extension_set(extensions)
+    images = image_extensions() if pattern is None and wanted is None else None
+    found, left_out = [], []
     for path in root.glob(pattern or "*"):
         rel = path.relative_to(root)
         if any(part.startswith(".") for part in rel.parts) or is_temp_file(path) or not path.is_file():
             continue
         if excluded_inside is not None and excluded_inside in path.resolve().parents:
             continue
+        if wanted is not None and path.suffix.lower() not in wanted:
+            continue
+        if images is not None and path.suffix.lower() not in images:
+            left_out.append(str(path))
+            continue
         found.append(path)
+    if ignored is not None:
+        ignored.extend(sorted(left_out))
     return sorted(found)
 
 
-def plan(input_dir, output_dir, pattern):
+def plan(input_dir, output_dir, pattern, extensions=None, ignored=None):
     """[(input, output)] pairs; refuses any output that is an input."""
-    inputs = list_inputs(input_dir, pattern, exclude=output_dir)
+    inputs = list_inputs(input_dir, pattern, exclude=output_dir, extensions=extensions, ignored=ignored)
     root, out_root = Path(input_dir), Path(output_dir)
     if root.resolve() == out_root.resolve():
         raise ArgumentError("the output folder is the input folder; choose another (inputs are never modified)")
@@ -168,6 +229,8 @@ def run_batch(
     backend_options=None,
     orientation="apply",
     antialias=False,
+    extensions=None,
+    damaged="refuse",
 ):
     """Warp every image file of ``input_dir`` into ``output_dir``.
 
@@ -183,7 +246,14 @@ def run_batch(
     input_dir, output_dir : str or path-like
         The folders; ``output_dir`` is created if needed.
     pattern : str, optional
-        A glob pattern the files must match (default: every file).
+        A glob pattern the files must match (default: every file whose
+        extension is an image format's; the others, such as notes.txt, are
+        listed in ``summary.ignored`` and the report, not failed).
+    extensions : str or list of str, optional
+        Only files with these extensions ("jpg,png" or ["jpg", "png"]).
+    damaged : {"refuse", "accept"}, optional
+        As in :func:`fpiwarp.read_image`: damaged files fail (default) or
+        are decoded as far as they go.
     jobs : int, optional
         Threads working in parallel, with at most a few images in memory
         per thread (backends that are not thread safe run in this thread).
@@ -207,7 +277,10 @@ def run_batch(
     -------
     BatchSummary
         What was written, skipped and failed. Files that cannot be read or
-        written are recorded as failed and the others processed.
+        written are recorded as failed and the others processed. One map
+        serves every size: an image whose size differs from the first's
+        (in name order) is warped with the map's pixel coordinates as they
+        are, and the report says so (``summary.size_notes()``).
 
     Raises
     ------
@@ -236,12 +309,13 @@ def run_batch(
     if int(jobs) < 1:
         raise ArgumentError(f"jobs must be at least 1, got {jobs}")
     check_orientation(orientation)
-    options = FileOptions(overwrite=bool(overwrite), orientation=orientation)
+    check_damaged(damaged)
+    options = FileOptions(overwrite=bool(overwrite), orientation=orientation, damaged=damaged)
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
                     backend_options=backend_options, antialias=antialias)
-    pairs = plan(input_dir, output_dir, pattern)
-    Path(output_dir).mkdir(parents=True, exist_ok=True)
     summary = BatchSummary() if summary is None else summary
+    pairs = plan(input_dir, output_dir, pattern, extensions, summary.ignored)
+    Path(output_dir).mkdir(parents=True, exist_ok=True)
     summary.total = len(pairs)
     sweep_temporaries(output_dir, summary)
 
@@ -320,7 +394,8 @@ class _Read:
             return
         self.result = None
         try:
-            self.image, self.info = read_image(src, orientation=options.orientation, with_info=True)
+            self.image, self.info = read_image(src, orientation=options.orientation, with_info=True,
+                                               damaged=options.damaged)
             channels = 1 if self.image.ndim == 2 else self.image.shape[2]
             check_writable(dst, self.image.dtype, channels, self.info)
         except FILE_ERRORS as exc:
@@ -331,7 +406,7 @@ def _write(read, out, options):
     try:
         read.dst.parent.mkdir(parents=True, exist_ok=True)
         write_image(read.dst, out, read.info, overwrite=options.overwrite)
-        return "done", str(read.src), None
+        return "done", str(read.src), None, (read.size[1], read.size[0])
     except OutputExistsError:
         return "skipped", str(read.src), None
     except FILE_ERRORS as exc:
@@ -363,6 +438,7 @@ def _run_in_this_thread(pairs, warper, options, jobs, record):
             except FpiwarpError as exc:
                 record(("failed", str(read.src), reason_of(exc)))
                 continue
+            read.size = read.image.shape[:2]
             del read.image
             _wait_below(writes, jobs, record)
             writes.add(pool.submit(_write, read, out, options))

@@ -32,7 +32,7 @@ from ..block.many import is_many_maps
 from ..errors import ArgumentError
 from ..io.images import read_image
 from ..maps.transform import Transform
-from ..validation import check_image, check_map_size, check_transform, check_warp_arguments
+from ..validation import check_image, check_map_size, check_transform, check_warp_arguments, refuse_masked
 from ..warping import Warper
 from .folders import BatchSummary, list_inputs, run_batch
 from .progress import Progress
@@ -47,6 +47,7 @@ __all__ = ["BatchSummary", "Progress", "Warper", "list_inputs", "run_batch", "wa
 def _as_image(item):
     if isinstance(item, (str, os.PathLike)):
         return read_image(item)
+    refuse_masked(item)
     return item
 
 
@@ -107,6 +108,9 @@ def warp_images(
     """
     warper = Warper(transform, output_shape, order=order, mode=mode, cval=cval, backend=backend,
                     backend_options=backend_options, antialias=antialias)
+    if isinstance(images, (list, tuple)):  # refused now, not at the first next()
+        for item in images:
+            refuse_masked(item)
     return (warper(_as_image(item)) for item in images)
 
 
@@ -178,6 +182,7 @@ def warp_batch(
     >>> fpiwarp.warp_batch(stack, maps).shape
     (3, 4, 5, 3)
     """
+    refuse_masked(images, "images")
     if labels.label_dtype(images) is not None:  # bool and integer labels: order 0 through a carrier
         return labels.warp_labels(warp_batch, images, transforms, output_shape, batch=True, order=order, mode=mode,
                                   cval=cval, backend=backend, antialias=antialias, out=out, channels=channels)

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ArgumentError, FpiwarpError, OutputExistsError, OutputIsFolderError
+from ..errors import ArgumentError, FpiwarpError
+from ..io.atomic import check_output
 from ..maps.fpi import FPI
 from ..maps.local import LocalDeformation
 from ..spec import load_spec
@@ -104,10 +105,7 @@ def same_file(a, b):
 def check_output_path(input_path, output, overwrite):
     if input_path is not None and same_file(input_path, output):
         raise UsageError(f"the output {output} is the input file; inputs are never modified, choose another name")
-    if Path(output).is_dir():
-        raise OutputIsFolderError(output)
-    if not overwrite and Path(output).exists():
-        raise OutputExistsError(output)
+    check_output(output, overwrite=overwrite)  # a folder, a special file, an existing file without --overwrite
 
 
 # --------------------------------------------------------------------------

@@ -34,7 +34,7 @@ from pathlib import Path
 from .. import __version__
 from ..backends import REGISTRY, backend_status
 from ..batch.images import BatchSummary, Progress, list_inputs, run_batch
-from ..errors import BackendUnavailableError, FpiwarpError, OutputExistsError
+from ..errors import BackendUnavailableError, FpiwarpError, MissingDependencyError, OutputExistsError
 from ..io.images import ORIENTATIONS, check_writable, read_image, write_image
 from ..maps.fpi import FPI
 from ..metrics import grid
@@ -97,7 +97,7 @@ def cmd_warp(args):
     if not Path(args.input).exists():
         raise FileNotFoundError(f"no such file: {args.input}")
     check_output_path(args.input, args.output, args.overwrite)
-    image, info = read_image(args.input, orientation=args.orientation, with_info=True)
+    image, info = read_image(args.input, orientation=args.orientation, with_info=True, damaged=_damaged(args))
     check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
     if hasattr(transform, "for_picture"):  # a local deformation: continuous over this picture and the output
         out_h, out_w = output_shape or image.shape[:2]
@@ -119,7 +119,7 @@ def cmd_batch(args):
     cval = parse_cval(args.cval)
     if args.jobs < 1:
         raise UsageError(f"--jobs must be at least 1, got {args.jobs}")
-    total = len(list_inputs(args.input_dir, args.pattern, exclude=args.output_dir))
+    total = len(list_inputs(args.input_dir, args.pattern, exclude=args.output_dir, extensions=args.ext))
     progress = Progress(total, enabled=False if args.no_progress else None)
     summary = BatchSummary()
     try:
@@ -140,6 +140,8 @@ def cmd_batch(args):
             scheduler=args.scheduler,
             summary=summary,
             orientation=args.orientation,
+            extensions=args.ext,
+            damaged=_damaged(args),
         )
     except KeyboardInterrupt:
         progress.close()
@@ -148,7 +150,8 @@ def cmd_batch(args):
     progress.close()
     _print_summary(summary)
     if summary.total == 0:
-        print(f"fpiwarp: warning: no files in {args.input_dir} match {args.pattern or '*'}", file=sys.stderr)
+        what = args.pattern or (f"*.{{{args.ext}}}" if args.ext else "the image extensions")
+        print(f"fpiwarp: warning: no files in {args.input_dir} match {what}", file=sys.stderr)
     return 0 if summary.ok else 1
 
 
@@ -185,22 +188,47 @@ def _preview_transform(args, image):
     return transform_from_args(args)
 
 
+#: The packages of each preview extra (top-level import names): a missing
+#: one is a missing extra, named with its pip command; any other ImportError
+#: stays a bug.
+PREVIEW_EXTRAS = {
+    "preview": ("moderngl", "moderngl_window", "glcontext", "pyglet"),
+    "widget": ("anywidget", "moderngl", "glcontext"),
+}
+
+
+def _import_for_preview(module, extra, what):
+    """``fpiwarp.<module>`` imported, or a MissingDependencyError naming the
+    missing package and ``pip install 'fpiwarp[<extra>]'``."""
+    import importlib
+
+    try:
+        return importlib.import_module(f"fpiwarp.{module}")
+    except ImportError as exc:
+        missing = (exc.name or "").split(".")[0]
+        if missing not in PREVIEW_EXTRAS[extra]:
+            raise
+        raise MissingDependencyError(
+            f"{what} needs {missing.replace('_', '-')}, which is not installed: pip install 'fpiwarp[{extra}]'"
+        ) from None
+
+
 def cmd_preview(args):
     """Show the warp in a window, or render one frame with --screenshot."""
     if not Path(args.input).exists():
         raise FileNotFoundError(f"no such file: {args.input}")
     if args.screenshot is not None:
         check_output_path(args.input, args.screenshot, args.overwrite)
-    image, info = read_image(args.input, orientation=args.orientation, with_info=True)
+    image, info = read_image(args.input, orientation=args.orientation, with_info=True, damaged=_damaged(args))
     transform = _preview_transform(args, image)
     overlays = () if args.no_overlay else ("handles", "outline")
     if args.web:
+        _import_for_preview("widget.session", "widget", "fpiwarp preview --web")
         return _preview_web(args, image, info, transform, overlays)
+    viewer = _import_for_preview("viewer", "preview", "fpiwarp preview")
     if args.screenshot is not None:
-        from ..viewer import render_image
-
         try:
-            frame = render_image(image, transform, overlays=overlays, order=args.order)
+            frame = viewer.render_image(image, transform, overlays=overlays, order=args.order)
         except RuntimeError as exc:  # no GL driver: create_context's reason
             raise BackendUnavailableError(f"cannot render offscreen: {exc}") from None
         keep = info if frame.shape[2:] == image.shape[2:] else None
@@ -208,10 +236,8 @@ def cmd_preview(args):
         write_image(args.screenshot, frame, keep, overwrite=args.overwrite)
         print(f"wrote {args.screenshot}")
         return 0
-    from ..viewer import run
-
     name = Path(args.input).stem
-    editor = run(image, transform, info=info, name=name, export_path=f"{name}-warped{Path(args.input).suffix}",
+    editor = viewer.run(image, transform, info=info, name=name, export_path=f"{name}-warped{Path(args.input).suffix}",
                  overlays=overlays, order=args.order)
     for path in editor.saved:
         print(f"wrote {path}")
@@ -277,6 +303,10 @@ def _add_warp_options(p):
     _add_orientation_option(p)
 
 
+def _damaged(args):
+    return "accept" if args.accept_damaged else "refuse"
+
+
 def _add_orientation_option(p):
     p.add_argument(
         "--orientation",
@@ -284,6 +314,12 @@ def _add_orientation_option(p):
         default="apply",
         help="EXIF orientation: 'apply' (default) warps photos as viewers show them and writes them upright; "
         "'stored' keeps the stored pixels and their tag",
+    )
+    p.add_argument(
+        "--accept-damaged",
+        action="store_true",
+        help="decode damaged image files as far as they go (truncated data, a JPEG smaller than its header's "
+        "size needs), the rest filled by the decoder; by default they are refused",
     )
 
 
@@ -322,13 +358,18 @@ def build_parser():
         help="warp every image of a folder",
         description="Warp every image of INPUT_DIR into OUTPUT_DIR with one map, keeping names, "
         "formats and metadata. Existing outputs are skipped (a rerun resumes) unless --overwrite; "
-        "files that fail are listed at the end and make the exit status 1.",
+        "files that fail are listed at the end and make the exit status 1. Files that are not images by their "
+        "extension (notes.txt) are listed as ignored; images of another size than the first are warped with "
+        "the same pixel coordinates and listed.",
     )
     p.add_argument("spec", metavar="SPEC.json", help="the JSON spec of the warp")
     p.add_argument("input_dir", metavar="INPUT_DIR")
     p.add_argument("output_dir", metavar="OUTPUT_DIR", help="created if missing; must differ from INPUT_DIR")
     p.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), help="parallel workers")
-    p.add_argument("--pattern", metavar="GLOB", help="files to take, e.g. '*.jpg' or '**/*.png' (default all)")
+    p.add_argument("--pattern", metavar="GLOB",
+                   help="files to take, e.g. '*.jpg' or '**/*.png' (default: every image file at the top level; "
+                   "other files such as notes.txt are listed as ignored)")
+    p.add_argument("--ext", metavar="EXT,...", help="only files with these extensions, e.g. jpg,png")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster (tcp://host:8786)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_warp_options(p)

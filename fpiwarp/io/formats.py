@@ -8,8 +8,12 @@ for TIFF. Anything that cannot be stored without loss is refused up front,
 before any warping, with a message naming the file.
 """
 
+import contextlib
 import importlib
 import os
+import sys
+import tempfile
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -75,6 +79,32 @@ def check_pixel_count(path, width, height, max_pixels):
             f"{path}: image of {width}×{height} = {width * height:,} pixels exceeds the limit of "
             f"{max_pixels:,} pixels (a decompression bomb, or too large to warp in memory)"
         )
+
+
+_STDERR_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def quiet_stderr():
+    """File descriptor 2 sent to a temporary file (and dropped) while a C
+    codec runs: libpng writes its warnings there, where no Python code can
+    catch them. The damage they report is detected before decoding."""
+    with _STDERR_LOCK:
+        try:
+            sys.stderr.flush()
+            saved = os.dup(2)
+        except (OSError, ValueError, AttributeError):
+            yield
+            return
+        try:
+            with tempfile.TemporaryFile() as sink:
+                os.dup2(sink.fileno(), 2)
+                try:
+                    yield
+                finally:
+                    os.dup2(saved, 2)
+        finally:
+            os.close(saved)
 
 
 def optional_codec(module, path, what):
@@ -170,6 +200,9 @@ def check_writable(path: str | os.PathLike, dtype: DTypeLike, channels: int, inf
         return fmt
     mode = pillow_mode(dtype, channels, info)
     allowed = _PILLOW_MODES_BY_FORMAT.get(fmt)
+    if mode == "CMYK" and allowed is not None and mode not in allowed:
+        raise ImageError(f"{path}: {fmt} cannot store CMYK images (the info says CMYK); pass info=None to write "
+                         "the 4 channels as RGBA, or convert the pixels to RGB first")
     if mode is None or (allowed is not None and mode not in allowed):
         hint = "; use .tif" if dtype == np.float32 and fmt != "TIFF" else "; use .png" if fmt != "PNG" else ""
         raise ImageError(f"{path}: {fmt} cannot store {describe(dtype, channels)} images{hint}")

@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ImageError, OutputExistsError, OutputIsFolderError
-from .atomic import TEMP_SUFFIX, atomic_write, check_output, is_temp_file
+from ..errors import ArgumentTypeError, ImageError, OutputExistsError, OutputIsFolderError
+from ..validation import refuse_masked, short_repr
+from .atomic import TEMP_SUFFIX, atomic_write, check_output, is_temp_file, special_kind
 from .formats import (
     INSTALL_IO,
     MAX_PIXELS,
@@ -43,11 +44,12 @@ from .formats import (
     pillow_mode,
 )
 from .orientation import ORIENTATIONS, apply_orientation, check_choice
-from .pillow import open_checked, read_pillow, write_pillow
+from .pillow import DAMAGED, check_damaged, open_checked, read_pillow, write_pillow
 from .png import PNG_SIGNATURE, encode_png, png_chunks, read_png
 from .tiff import is_tiff, read_tiff, write_tiff16
 
 __all__ = [
+    "DAMAGED",
     "INSTALL_IO",
     "MAX_PIXELS",
     "ORIENTATIONS",
@@ -70,7 +72,12 @@ __all__ = [
 
 
 def read_image(
-    path: str | os.PathLike, *, orientation: str = "apply", max_pixels: int = MAX_PIXELS, with_info: bool = False
+    path: str | os.PathLike,
+    *,
+    orientation: str = "apply",
+    max_pixels: int = MAX_PIXELS,
+    with_info: bool = False,
+    damaged: str = "refuse",
 ) -> np.ndarray | tuple[np.ndarray, ImageInfo]:
     """Read an image file; return its pixels (with ``with_info=True``:
     ``(pixels, info)``, the metadata to write a warped copy alike).
@@ -96,12 +103,28 @@ def read_image(
     with_info : bool, optional
         Also return the file's :class:`ImageInfo` (default False: the
         pixels only, like every other image reader).
+    damaged : {"refuse", "accept"}, optional
+        "refuse" (the default): a file that a forgiving decoder would
+        complete with filler is an ImageError naming the file and the
+        damage: truncated data, a baseline JPEG smaller than its header's
+        size needs (checked before decoding), PNG pixel data shorter or
+        longer than its header says. "accept" decodes what is there
+        (Pillow's ``LOAD_TRUNCATED_IMAGES`` while it decodes; the rest of
+        the picture is the decoder's filler). Either way no codec warning
+        reaches stderr.
 
     Returns
     -------
     array : ndarray
-        (H, W) or (H, W, C), uint8, uint16 or float32, row 0 at the top,
-        channels in RGB(A) order.
+        (H, W) or (H, W, C), uint8, uint16 or float32, row 0 at the top:
+        gray, gray+alpha, RGB or RGBA in that order. Other colour modes are
+        converted: CMYK to RGB through its embedded CMYK ICC profile (to
+        sRGB, with littlecms) or, without one, by Pillow's plain formula
+        (CMYK JPEGs are read with Adobe's inverted convention, as Photoshop
+        writes them); YCbCr, LAB and HSV to RGB; palette to RGB, or RGBA
+        where it has transparency; bilevel ("1") to 8-bit gray 0/255;
+        16-bit gray in any byte order to uint16; 32-bit float to float32.
+        ``info.mode`` then names the returned layout ("RGB", ...).
     info : ImageInfo
         Only with ``with_info=True``: how the file stored it (mode,
         metadata), for :func:`write_image` to store the warped copy alike.
@@ -111,8 +134,10 @@ def read_image(
     FileNotFoundError
         A missing file.
     ImageError
-        A folder, a file that is not an image, is corrupt, is too large,
-        or cannot be read without loss.
+        A folder, a FIFO, device or socket, a file that is not an image, is
+        corrupt or damaged, is too large, or cannot be read without loss.
+    ArgumentTypeError
+        ``path`` is not a file name (an array passed by mistake).
 
     Examples
     --------
@@ -124,25 +149,50 @@ def read_image(
     >>> image.shape, image.dtype.name, info.mode
     ((480, 640, 3), 'uint8', 'RGB')
     """
-    array, info = _read(path, orientation, max_pixels)
+    array, info = _read(path, orientation, max_pixels, damaged)
     return (array, info) if with_info else array
 
 
-def _read(path, orientation, max_pixels):
+def _read(path, orientation, max_pixels, damaged="refuse"):
     check_choice(orientation)
-    path = Path(path)
+    check_damaged(damaged)
+    path = _input_path(path)
     if path.is_dir():
         raise ImageError(f"{path}: is a folder, not an image file")
+    kind = special_kind(os.stat(path).st_mode)  # FileNotFoundError for a missing file
+    if kind is not None:  # reading a FIFO would wait forever, a device never end
+        raise ImageError(f"{path}: is {kind}, not an image file")
     with open(path, "rb") as f:
         head = f.read(len(PNG_SIGNATURE))
     if head == PNG_SIGNATURE:
-        array, info, tag = read_png(path, path.read_bytes(), max_pixels)
+        array, info, tag = read_png(path, path.read_bytes(), max_pixels, damaged)
     elif is_tiff(head):
-        array, info, tag = read_tiff(path, max_pixels)
+        array, info, tag = read_tiff(path, max_pixels, damaged)
     else:
         with open_checked(path, max_pixels) as im:
-            array, info, tag = read_pillow(path, im)
+            array, info, tag = read_pillow(path, im, damaged)
     return apply_orientation(array, info, tag, orientation)
+
+
+def _input_path(path):
+    """``path`` as a Path; a one-line ArgumentTypeError for anything else
+    (an array passed where the file name goes)."""
+    if isinstance(path, (str, os.PathLike)):
+        return Path(path)
+    raise ArgumentTypeError(f"read_image takes a file name (str or path-like), got {short_repr(path)}")
+
+
+def _check_write_arguments(path, array):
+    """One line for write_image(array, path) (the arguments swapped), a
+    path of another type, and a masked array."""
+    if not isinstance(path, (str, os.PathLike)):
+        if isinstance(array, (str, os.PathLike)):
+            raise ArgumentTypeError(
+                f"write_image(path, array): the arguments are swapped, got {short_repr(path)} as the path "
+                f"and {short_repr(array)} as the array; call write_image({short_repr(array)}, array)"
+            )
+        raise ArgumentTypeError(f"write_image's path must be a file name (str or path-like), got {short_repr(path)}")
+    refuse_masked(array, "array")
 
 
 def write_image(
@@ -174,6 +224,14 @@ def write_image(
         ``path`` exists and not ``overwrite``.
     OutputIsFolderError
         ``path`` is a folder.
+    OutputIsSpecialFileError
+        ``path`` is a FIFO, a character or block device (/dev/null), a
+        socket, a symbolic link to one or a dangling link: never replaced,
+        even with ``overwrite`` (a link to a regular file is followed: the
+        new content goes to its target, and the link stays).
+    ArgumentTypeError
+        The arguments swapped (``write_image(array, path)``), or a masked
+        array (pass ``array.filled(value)`` or ``array.data``).
 
     Examples
     --------
@@ -185,6 +243,8 @@ def write_image(
     >>> fpiwarp.read_image(path).tolist()
     [[0, 1, 2], [3, 4, 5]]
     """
+    _check_write_arguments(path, array)
+    check_output(path, overwrite=overwrite)  # a folder, a special file: said before anything else
     array = np.asarray(array)
     dtype, channels = layout(array, path)
     fmt = check_writable(path, dtype, channels, info)

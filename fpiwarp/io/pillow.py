@@ -5,11 +5,14 @@ What Pillow would reduce to 8 bits (16-bit colour) is not read here: the
 PNG and TIFF modules send it to ``imagecodecs`` and ``tifffile``.
 """
 
+import contextlib
+import os
 import re
 import struct
+import threading
 
 import numpy as np
-from PIL import Image, JpegImagePlugin, UnidentifiedImageError
+from PIL import Image, ImageFile, JpegImagePlugin, UnidentifiedImageError
 
 from ..errors import ImageError
 from .formats import ImageInfo, check_pixel_count
@@ -62,20 +65,79 @@ def tiff_bits(im):
     return max(bits, default=8)
 
 
-def read_pillow(path, im):
+#: What ``read_image(damaged=...)`` takes.
+DAMAGED = ("refuse", "accept")
+#: Fewest bits a baseline JPEG spends on one 8x8 block of its first
+#: component: a DC difference code and an end-of-block code, at least one
+#: bit each with optimal Huffman tables. A file smaller than the header's
+#: block count implies is cut short or padded with filler.
+MIN_BITS_PER_BLOCK = 2
+_TRUNCATED_LOCK = threading.Lock()
+
+
+def check_damaged(damaged):
+    if damaged not in DAMAGED:
+        from ..errors import ArgumentError
+
+        raise ArgumentError(f"damaged must be one of {DAMAGED}, got {damaged!r}")
+    return damaged
+
+
+def _check_jpeg_size(path, im):
+    """Refuse a baseline JPEG whose file is too small for the size its
+    header claims (before decoding it: a 1 KB file claiming 9000x9000 would
+    otherwise decode 243 MB of filler gray). Progressive JPEGs can code
+    whole runs of empty blocks in a few bits, so they are not bounded."""
+    if im.format != "JPEG" or im.info.get("progressive") or im.info.get("progression"):
+        return
+    w, h = im.size
+    blocks = -(-w // 8) * -(-h // 8)
+    need = blocks * MIN_BITS_PER_BLOCK // 8
+    size = os.path.getsize(path)
+    if size < need:
+        raise ImageError(
+            f"{path}: damaged JPEG: its header claims {w}x{h} pixels, which needs at least {need:,} bytes of "
+            f"image data, but the file has {size:,} bytes (cut short, or padded with filler); "
+            "pass damaged='accept' (--accept-damaged) to decode what is there"
+        )
+
+
+@contextlib.contextmanager
+def _decoding(damaged):
+    """Pillow's LOAD_TRUNCATED_IMAGES on while an image with
+    ``damaged="accept"`` is decoded (a global of Pillow's: set under a lock
+    and restored)."""
+    if damaged != "accept" or ImageFile.LOAD_TRUNCATED_IMAGES:
+        yield
+        return
+    with _TRUNCATED_LOCK:
+        ImageFile.LOAD_TRUNCATED_IMAGES = True
+        try:
+            yield
+        finally:
+            ImageFile.LOAD_TRUNCATED_IMAGES = False
+
+
+def read_pillow(path, im, damaged="refuse"):
     """(array, info, orientation) of an image opened by
     :func:`open_checked`: the pixels as stored, and the EXIF orientation
-    they need for display."""
+    they need for display. ``damaged="refuse"`` (the default) refuses a
+    truncated file and a JPEG too small for its header's size; "accept"
+    decodes what there is (the rest filled by the decoder)."""
     try:
         tiff = im.format == "TIFF"
         stored_tag = _orientation(im) if tiff else 1  # before loading: Pillow drops it when turning TIFF pixels
-        im.load()  # first for the others: a corrupt file must fail here, not inside getexif
+        if damaged == "refuse":
+            _check_jpeg_size(path, im)
+        with _decoding(damaged):
+            im.load()  # first for the others: a corrupt file must fail here, not inside getexif
         orientation = stored_tag if tiff else _orientation(im)
         array, info = _from_pillow(im, path)
     except (OSError, SyntaxError, ValueError, struct.error) as exc:
         if isinstance(exc, (ImageError, FileNotFoundError, PermissionError)):
             raise
-        raise ImageError(f"{path}: cannot read image: {exc}") from None
+        hint = "; pass damaged='accept' (--accept-damaged) to decode what is there" if "truncated" in str(exc) else ""
+        raise ImageError(f"{path}: cannot read image: {exc}{hint}") from None
     if tiff:
         array = to_stored(array, orientation)  # Pillow (10 and later) turns TIFF pixels while loading
     return array, info, orientation
@@ -107,7 +169,10 @@ def _from_pillow(im, path):
     if im.format == "TIFF":
         info.tiff_compression = im.info.get("compression")
     mode = im.mode
-    if mode in ("L", "LA", "RGB", "RGBA", "CMYK"):
+    if mode == "CMYK":
+        arr = np.asarray(_cmyk_to_rgb(im, info))
+        info.mode = "RGB"
+    elif mode in ("L", "LA", "RGB", "RGBA"):
         arr = np.asarray(im)
     elif mode in ("I;16", "I;16L", "I;16B", "I;16N"):
         arr = np.asarray(im).astype(np.uint16)
@@ -130,6 +195,33 @@ def _from_pillow(im, path):
     else:
         raise ImageError(f"{path}: pixel mode {mode!r} is not supported")
     return np.ascontiguousarray(arr), info
+
+
+def _cmyk_to_rgb(im, info):
+    """A CMYK image as RGB: through its embedded ICC profile (a CMYK
+    profile) to sRGB with littlecms, or without one (or with a profile of
+    another colour space, which cannot describe these pixels) by Pillow's
+    plain formula R = 255 - min(255, C + K), ... . Pillow reads CMYK JPEGs
+    with Adobe's inverted convention, as Photoshop writes them, so the
+    samples are true CMYK either way. The profile is then dropped from
+    ``info``: the pixels are sRGB (or, without a profile, device RGB)."""
+    profile = info.icc_profile
+    info.icc_profile = None
+    if profile:
+        try:
+            from io import BytesIO
+
+            from PIL import ImageCms
+
+            source = ImageCms.ImageCmsProfile(BytesIO(profile))
+            if source.profile.xcolor_space.strip() == "CMYK":
+                return ImageCms.profileToProfile(im, source, ImageCms.createProfile("sRGB"), outputMode="RGB")
+        except (ImportError, OSError, ValueError, TypeError, AttributeError):
+            pass  # no littlecms, or a profile it cannot read: the plain formula
+        except Exception as exc:  # noqa: BLE001 - ImageCms.PyCMSError is not an OSError
+            if type(exc).__name__ != "PyCMSError":
+                raise
+    return im.convert("RGB")
 
 
 def to_pillow(array, mode):

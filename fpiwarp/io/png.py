@@ -16,7 +16,7 @@ from io import BytesIO
 import numpy as np
 
 from ..errors import ImageError
-from .formats import ImageInfo, check_pixel_count, is_16_bit_colour, optional_codec
+from .formats import ImageInfo, check_pixel_count, is_16_bit_colour, optional_codec, quiet_stderr
 from .orientation import orientation_of
 from .pillow import open_checked, read_pillow, to_pillow
 
@@ -80,28 +80,75 @@ def png_header(chunks, name):
     return PngHeader(w, h, depth, color, interlace)
 
 
-def read_png(path, data, max_pixels):
+def read_png(path, data, max_pixels, damaged="refuse"):
     """(array, info, orientation) of the PNG file ``path`` whose bytes are
-    ``data``; the size is checked against ``max_pixels`` before decoding."""
+    ``data``; the size is checked against ``max_pixels`` before decoding.
+    ``damaged="refuse"`` refuses pixel data shorter or longer than the
+    header's size needs (checked by inflating it, before decoding)."""
     chunks = png_chunks(data, path)
     header = png_header(chunks, path)
     check_pixel_count(path, header.width, header.height, max_pixels)
+    if damaged == "refuse":
+        _check_pixel_data(path, chunks, header)
     if header.depth == 16 and header.color in (2, 4, 6):
         arr, info = _read_16_bit_colour(path, data, chunks, header)
         orientation = orientation_of(next((p for t, p in chunks if t == b"eXIf"), None))
     else:
         with open_checked(path, max_pixels) as im:
-            arr, info, orientation = read_pillow(path, im)
+            arr, info, orientation = read_pillow(path, im, damaged)
     info.png_chunks = [(t, p) for t, p in chunks if t in KEEP_CHUNKS | KEEP_SAME_ENCODING]
     info.ihdr = (header.depth, header.color)
     return arr, info, orientation
+
+
+_CHANNELS_ALL = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}
+_ADAM7 = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2))
+
+
+def raw_size(header):
+    """Bytes of the inflated pixel data (filter bytes included) that a PNG
+    of this header holds: one scan line per row, per Adam7 pass if interlaced."""
+    bits = header.depth * _CHANNELS_ALL[header.color]
+
+    def lines(w, h):
+        return 0 if w == 0 or h == 0 else h * (1 + (w * bits + 7) // 8)
+
+    if not header.interlace:
+        return lines(header.width, header.height)
+    return sum(lines(-(-(header.width - x0) // dx), -(-(header.height - y0) // dy)) for x0, y0, dx, dy in _ADAM7)
+
+
+def _check_pixel_data(path, chunks, header):
+    """Refuse IDAT data that does not inflate to what the header needs (a
+    forgiving decoder would fill the rest with zeros and only print a
+    warning). Inflated in pieces, never beyond the expected size + 1."""
+    need = raw_size(header)
+    inflater = zlib.decompressobj()
+    got = 0
+    try:
+        for ctype, payload in chunks:
+            if ctype == b"IDAT":
+                got += len(inflater.decompress(payload, need + 1 - got))
+                if got > need or inflater.unconsumed_tail:
+                    break
+        complete = inflater.eof
+    except zlib.error as exc:
+        raise ImageError(f"{path}: damaged PNG: its pixel data cannot be inflated ({exc})") from None
+    if got != need or not complete:
+        what = "more" if got > need else f"{got:,}"
+        raise ImageError(
+            f"{path}: damaged PNG: its pixel data holds {what} of the {need:,} bytes its "
+            f"{header.width}x{header.height} header needs{'' if complete else ' (the data stream is cut short)'}; "
+            "pass damaged='accept' (--accept-damaged) to decode what is there"
+        )
 
 
 def _read_16_bit_colour(path, data, chunks, header):
     kind = f"16-bit {_COLOR_NAMES[header.color]} PNG"
     codecs = optional_codec("imagecodecs", path, f"reading {kind}")
     try:
-        arr = codecs.png_decode(data)
+        with quiet_stderr():  # libpng prints its warnings there (for every interlaced file, a spurious one)
+            arr = codecs.png_decode(data)
     except (codecs.PngError, ValueError, RuntimeError) as exc:
         raise ImageError(f"{path}: corrupt {kind} ({exc})") from None
     channels = _COLOR_CHANNELS[header.color]

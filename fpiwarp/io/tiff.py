@@ -44,7 +44,7 @@ def is_tiff(head):
 _DEEP_PILLOW_MODES = ("I;16", "I;16B", "I;16L", "I", "F")
 
 
-def read_tiff(path, max_pixels):
+def read_tiff(path, max_pixels, damaged="refuse"):
     """(array, info, orientation) of a TIFF file, through tifffile when it
     is 16-bit colour, else through Pillow."""
     if have_tifffile():
@@ -56,7 +56,7 @@ def read_tiff(path, max_pixels):
     with open_checked(path, max_pixels, unreadable) as im:
         if tiff_bits(im) > 8 and im.mode not in _DEEP_PILLOW_MODES:
             raise needs_tifffile(path, tiff_bits(im), im.mode)
-        return read_pillow(path, im)
+        return read_pillow(path, im, damaged)
 
 
 def have_tifffile():

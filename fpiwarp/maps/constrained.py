@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike
 from ..block import MAX_CENTERS, MobiusPart, Stage
 from ..errors import ArgumentError, ArgumentTypeError, ConstraintError, FoldOverError
 from .mobius import Mobius, centered_at_zero, mobius_product
+from .points import as_xy
 from .quad import check_corners, check_quad_pair, parallelogram_mobius, signed_area
 from .rlinear import RLinear
 from .thin_plate_spline import ThinPlateSpline
@@ -619,7 +620,7 @@ class ConstrainedFPI(Transform):
         self.edges, self.kind = edges, kind
         self.points_per_edge, self.delta, self.spacing = k, delta, spacing
         self.edge_parameters, self.spacing_used = tuple(ts), used
-        self.constraints = (_xy(pz if not flip else np.conj(pz)), _xy(pw if not flip else np.conj(pw)))
+        self.constraints = (as_xy(pz if not flip else np.conj(pz)), as_xy(pw if not flip else np.conj(pw)))
         check_corners(self, z, w)  # ill-conditioned quads: refuse rather than miss a corner
         refuse_fold(self, z, "the constrained FPI")
 
@@ -638,11 +639,11 @@ class ConstrainedFPI(Transform):
 
     @property
     def src(self):
-        return _xy(self._z)
+        return as_xy(self._z)
 
     @property
     def dst(self):
-        return _xy(self._w)
+        return as_xy(self._w)
 
     @property
     def tps(self):
@@ -792,6 +793,3 @@ def _check_points_per_edge(k, kind):
         )
     return k
 
-
-def _xy(z):
-    return np.stack([np.real(z), np.imag(z)], axis=-1)

@@ -30,6 +30,11 @@ DEGENERACY_TOL = 1e-9
 #: Largest |x| or |y| of a quad point: products of three coordinates (the
 #: Möbius coefficients, squared distances times a coordinate) stay finite.
 MAX_COORDINATE = 1e100
+#: Smallest quad radius (largest distance of a point from the centroid):
+#: below it the coordinates' differences approach float64's subnormal
+#: numbers (below 2.2e-308), whose reciprocals overflow to inf, and the
+#: map's coefficients cannot be built. Quads of 1e-300 still map to 1e-14.
+MIN_RADIUS = 1e-290
 
 
 def signed_area(z):
@@ -91,6 +96,11 @@ def check_quad(points, name="quad"):
     u, scale = _normalized(z)
     if scale == 0:
         raise DegenerateQuadError(f"{name} has all four points coincident")
+    if scale < MIN_RADIUS:
+        raise DegenerateQuadError(
+            f"{name} spans only {scale:.3g} (points {_short_points(arr)}): below {MIN_RADIUS:g}, where float64 "
+            "reaches its subnormal numbers and the map cannot be built; give the points in a larger unit"
+        )
     for i, j in itertools.combinations(range(4), 2):
         if abs(u[i] - u[j]) <= DEGENERACY_TOL:
             raise DegenerateQuadError(f"{name} points {i} and {j} coincide: {arr[i].tolist()}")
@@ -107,6 +117,11 @@ def check_quad(points, name="quad"):
     if abs(signed_area(u)) <= DEGENERACY_TOL:
         raise DegenerateQuadError(f"{name} has zero area")
     return z
+
+
+def _short_points(arr):
+    """The four points for a message, 3 significant digits each."""
+    return "[" + ", ".join(f"[{x:.3g}, {y:.3g}]" for x, y in arr) + "]"
 
 
 def _normalized(z):

@@ -39,7 +39,7 @@ from .renderer import Renderer
 #: Pick distance for handles and edges, in screen pixels.
 PICK_RADIUS = 10.0
 OVERLAYS = ("handles", "outline", "checkerboard", "heatmap")
-INSTALL_HINT = "pip install moderngl-window (brings pyglet)"
+INSTALL_HINT = "pip install 'fpiwarp[preview]' (moderngl and moderngl-window, which brings pyglet)"
 
 
 def _free_name(path):

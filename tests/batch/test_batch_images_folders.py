@@ -146,8 +146,9 @@ def test_folder_batch_warps_every_image_and_names_failures(photos, tmp_path, fpi
     out = tmp_path / "out"
     summary = run_batch(fpi, photos, out, jobs=2)
     assert sorted(p.rsplit("/", 1)[-1] for p in summary.done) == _good(photos)
-    assert sorted(p.rsplit("/", 1)[-1] for p, _ in summary.failed) == ["x_corrupt.png", "y_notes.txt"]
-    assert not summary.ok and summary.total == len(_good(photos)) + 2
+    assert sorted(p.rsplit("/", 1)[-1] for p, _ in summary.failed) == ["x_corrupt.png"]
+    assert [p.rsplit("/", 1)[-1] for p in summary.ignored] == ["y_notes.txt"]  # not an image: a note, not a failure
+    assert not summary.ok and summary.total == len(_good(photos)) + 1
     assert sorted(p.name for p in out.iterdir()) == _good(photos)
     for name in _good(photos):
         image, info = io.read_image(photos / name, with_info=True)
