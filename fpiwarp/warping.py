@@ -214,9 +214,8 @@ def warp_image(
     (4, 5)
     """
     if out is not None or channels != "last" or not _on_host(image):
-        return dispatch.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
-                                   backend=backend, backend_options=backend_options, antialias=antialias, out=out,
-                                   channels=channels, host_warp=warp_image)
+        call = dispatch.WarpCall(output_shape, order, mode, cval, backend_options, antialias, out, channels)
+        return dispatch.warp_image(image, transform, call, backend, host_warp=warp_image)
     backend = "numpy" if backend is None else backend
     caps = backend_capabilities(backend)
     args = check_warp_arguments(image, transform, output_shape, order, mode, cval, caps, backend, backend_options,

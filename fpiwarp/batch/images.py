@@ -26,7 +26,8 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..backends import get_backend
+from ..arrays.dispatch import WarpCall
+from ..backends import backend_entry, get_backend
 from ..errors import ArgumentError
 from ..io.images import read_image
 from ..maps.transform import Transform
@@ -34,10 +35,6 @@ from ..validation import check_image, check_map_size, check_transform, check_war
 from ..warping import Warper
 from .folders import BatchSummary, list_inputs, run_batch
 from .progress import Progress
-
-#: Backends whose ``warp_batch`` reads each map only as ``.inverse.stages()``
-#: (the block): they get each map's inverse computed once.
-KERNEL_BACKENDS = ("opencl", "warp", "gl")
 
 __all__ = ["BatchSummary", "Progress", "Warper", "list_inputs", "run_batch", "warp_batch", "warp_images"]
 
@@ -179,9 +176,8 @@ def warp_batch(
     if not isinstance(images, np.ndarray) or out is not None or channels != "last":
         from . import arrays as batch_path  # noqa: PLC0415 - device arrays, out= and layouts
 
-        return batch_path.warp_batch(images, transforms, output_shape, order=order, mode=mode, cval=cval,
-                                     backend=backend, antialias=antialias, out=out, channels=channels,
-                                     host_batch=warp_batch)
+        call = WarpCall(output_shape, order, mode, cval, None, antialias, out, channels)
+        return batch_path.warp_batch(images, transforms, call, backend, host_batch=warp_batch)
     backend = "numpy" if backend is None else backend
     stack = images
     if stack.ndim not in (3, 4) or stack.shape[0] == 0:
@@ -199,7 +195,7 @@ def warp_batch(
                                        antialias=antialias)
         for t in maps[1:]:
             check_transform(t, "transforms")
-        if backend in KERNEL_BACKENDS:
+        if backend_entry(backend).block_maps:
             # Each further map's inverse and its stages computed once, for the check and the block alike.
             from ..arrays.dispatch import Inverted  # noqa: PLC0415 - loaded with the first batch
 

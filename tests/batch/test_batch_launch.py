@@ -8,45 +8,12 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from support.batch_cases import KINDS, make_map
+from support.batch_cases import KINDS, batches, loop, make_map
 
 import fpiwarp
 from fpiwarp.backends import get_backend
 
 BATCHING = ["numpy", "opencl", "warp", "gl"]
-
-
-
-
-@st.composite
-def batches(draw):
-    n = draw(st.integers(1, 4))
-    h, w = draw(st.integers(1, 23)), draw(st.integers(1, 37))
-    c = draw(st.sampled_from([1, 2, 3, 4]))
-    dtype = draw(st.sampled_from([np.uint8, np.uint16, np.float32]))
-    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
-    if dtype is np.float32:
-        stack = rng.uniform(-2, 3, size=(n, h, w, c)).astype(np.float32)
-    else:
-        stack = rng.integers(0, np.iinfo(dtype).max, size=(n, h, w, c), dtype=dtype, endpoint=True)
-    if c == 1 and draw(st.booleans()):
-        stack = stack[..., 0]
-    one = draw(st.booleans())
-    kinds = draw(st.lists(st.sampled_from(KINDS), min_size=1 if one else n, max_size=1 if one else n))
-    maps = [make_map(kind, k, max(w, 8), max(h, 8)) for k, kind in enumerate(kinds)]
-    options = {
-        "output_shape": draw(st.sampled_from([None, (draw(st.integers(1, 19)), draw(st.integers(1, 41)))])),
-        "order": draw(st.sampled_from([0, 1, 3])),
-        "mode": draw(st.sampled_from(["constant", "edge", "reflect", "wrap"])),
-        "cval": draw(st.sampled_from([0, 7, 0.5])),
-        "antialias": draw(st.booleans()),
-    }
-    return stack, maps[0] if one else maps, options
-
-
-def loop(stack, transforms, backend, options):
-    maps = [transforms] * len(stack) if isinstance(transforms, fpiwarp.Transform) else transforms
-    return np.stack([fpiwarp.warp_image(im, t, backend=backend, **options) for im, t in zip(stack, maps)])
 
 
 @pytest.mark.parametrize("backend", BATCHING)

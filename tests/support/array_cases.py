@@ -50,3 +50,26 @@ class FakeCudaArray:
 def fails(*args, **kwargs):
     """Stands in for a host copy or readback that must not happen."""
     raise AssertionError("a host copy was made on a device path")
+
+
+def forbid_host_copies(monkeypatch, cla, limit):
+    """From here on, readbacks fail, and so does any host array of ``limit``
+    bytes or more given to enqueue_copy, other than a map's parameter block."""
+    import pyopencl as cl
+
+    from fpiwarp.backends.opencl import backend as opencl_backend
+    from fpiwarp.block import STAGE_ROWS
+
+    copy = cl.enqueue_copy
+
+    def is_block(a):  # a map's parameter block: float32 rows of vec4, a header row and whole stages
+        return a.dtype == np.float32 and a.ndim == 2 and a.shape[1] == 4 and (a.shape[0] - 1) % STAGE_ROWS == 0
+
+    def checked(queue, dest, src, **kw):
+        for a in (dest, src):
+            assert not (isinstance(a, np.ndarray) and a.nbytes >= limit and not is_block(a)), "a host copy of the image"
+        return copy(queue, dest, src, **kw)
+
+    monkeypatch.setattr(opencl_backend.Backend, "_read_back", fails)
+    monkeypatch.setattr(cla.Array, "get", fails)
+    monkeypatch.setattr(cl, "enqueue_copy", checked)

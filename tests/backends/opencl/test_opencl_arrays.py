@@ -3,11 +3,10 @@ and writes the device buffers in place, the result is a pyopencl array."""
 
 import numpy as np
 import pytest
-from support.array_cases import DTYPES, FPI, fails, make_image
+from support.array_cases import DTYPES, FPI, fails, forbid_host_copies, make_image
 
 import fpiwarp
 from fpiwarp.arrays import opencl_queue
-from fpiwarp.block import STAGE_ROWS
 
 
 @pytest.fixture
@@ -15,28 +14,6 @@ def cla(opencl_backend):
     from pyopencl import array
 
     return array
-
-
-def forbid_host_copies(monkeypatch, cla, limit):
-    """From here on, readbacks fail, and so does any host array of ``limit``
-    bytes or more given to enqueue_copy, other than a map's parameter block."""
-    import pyopencl as cl
-
-    from fpiwarp.backends.opencl import backend as opencl_backend
-
-    copy = cl.enqueue_copy
-
-    def is_block(a):  # a map's parameter block: float32 rows of vec4, a header row and whole stages
-        return a.dtype == np.float32 and a.ndim == 2 and a.shape[1] == 4 and (a.shape[0] - 1) % STAGE_ROWS == 0
-
-    def checked(queue, dest, src, **kw):
-        for a in (dest, src):
-            assert not (isinstance(a, np.ndarray) and a.nbytes >= limit and not is_block(a)), "a host copy of the image"
-        return copy(queue, dest, src, **kw)
-
-    monkeypatch.setattr(opencl_backend.Backend, "_read_back", fails)
-    monkeypatch.setattr(cla.Array, "get", fails)
-    monkeypatch.setattr(cl, "enqueue_copy", checked)
 
 
 @pytest.mark.parametrize("dtype", DTYPES)
