@@ -26,6 +26,44 @@ def cpu_model():
     return platform.processor() or platform.machine()
 
 
+#: CPU vector extensions named in benchmark tables, widest first.
+ISA_FLAGS = ("avx512f", "avx2", "avx", "sse4_2", "neon", "asimd")
+
+
+def cpu_isa():
+    """The widest vector ISA the CPU reports ("avx512f", "avx2", ...; Linux
+    /proc/cpuinfo flags), else the machine name. Figures from an AVX2 and an
+    AVX-512 machine must never be mixed in one table."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.lower().startswith(("flags", "features")):
+                    flags = set(line.split(":", 1)[1].split())
+                    found = [f for f in ISA_FLAGS if f in flags]
+                    return found[0] if found else "none of " + ", ".join(ISA_FLAGS)
+    except OSError:
+        pass
+    return platform.machine()
+
+
+def opencl_device():
+    """The opencl backend's device string ("Portable Computing Language:
+    pthread-skylake-avx512-..." on PoCL), or why it is unavailable."""
+    import fpiwarp
+    from fpiwarp.backends import get_backend
+
+    reason = fpiwarp.backend_status()["opencl"]
+    if reason is not None:
+        return f"unavailable: {reason}"
+    backend = get_backend("opencl")
+    return f"{backend.device_label} ({backend.device.platform.version.strip()})"
+
+
+def facts_line():
+    """One line for the head of every benchmark table: CPU model, ISA, PoCL/OpenCL device."""
+    return f"CPU: {cpu_model()} ({os.cpu_count()} cores, {cpu_isa()}); OpenCL device: {opencl_device()}"
+
+
 def library_versions():
     """{import name: version or None when not installed}."""
     versions = {}
@@ -82,6 +120,8 @@ def describe():
         load = None
     return {
         "cpu": cpu_model(),
+        "isa": cpu_isa(),
+        "opencl_device": opencl_device(),
         "cores": os.cpu_count(),
         "os": f"{platform.system()} {platform.release()}",
         "python": platform.python_version(),
@@ -95,12 +135,15 @@ def markdown(info):
     """A short Markdown block of :func:`describe`'s output."""
     libs = ", ".join(f"{k} {v}" for k, v in info["libraries"].items() if v is not None)
     lines = [
-        f"Machine: {info['cpu']}, {info['cores']} cores, {info['os']}, Python {info['python']}"
+        f"Machine: {info['cpu']} ({info.get('isa', '?')}), {info['cores']} cores, {info['os']}, "
+        f"Python {info['python']}"
         + (f", load average {info['load_average_1_5_15min'][0]} at start" if info.get("load_average_1_5_15min") else "")
         + ".",
         "",
         f"Libraries: {libs}.",
         "",
         "Backends: " + "; ".join(f"{k}: {v}" for k, v in info["backends"].items()) + ".",
+        "",
+        f"OpenCL device: {info.get('opencl_device', '?')}.",
     ]
     return "\n".join(lines)

@@ -12,13 +12,18 @@ the draw. Falsifying examples that were found are pinned with @example.
 """
 
 import os
+import tempfile
 
 import numpy as np
 import pytest
 from hypothesis import settings
 
-import fpiwarp
-from fpiwarp.backends import backend_status
+# What fpiwarp measures and builds (the fast default's ranking, OpenCL binaries) goes to a folder of this run,
+# never to the developer's cache; the fast default is measured once per run, by the first test that needs it.
+os.environ.setdefault("FPIWARP_CACHE_DIR", tempfile.mkdtemp(prefix="fpiwarp-test-cache-"))
+
+import fpiwarp  # noqa: E402
+from fpiwarp.backends import backend_status  # noqa: E402
 
 settings.register_profile("dev", deadline=None)
 settings.register_profile("ci", deadline=None, derandomize=True, database=None, print_blob=True)

@@ -174,6 +174,16 @@ def backend_status() -> dict[str, str | None]:
         return {name: _failed.get(name, _status[name][1]) for name in REGISTRY}
 
 
+def backend_reason(name: str) -> str | None:
+    """:func:`backend_status` of one backend (None: it can run here), probing
+    only that one (the first time)."""
+    check_backend_name(name)
+    with _lock:
+        if name not in _status:
+            _status[name] = _probe(name)
+        return _failed.get(name, _status[name][1])
+
+
 def available_backends() -> list[str]:
     """Names of the backends that can run here.
 
@@ -261,11 +271,7 @@ def get_backend(name):
     >>> backend is get_backend("numpy"), callable(backend.warp_image)
     (True, True)
     """
-    check_backend_name(name)
-    with _lock:
-        if name not in _status:
-            _status[name] = _probe(name)
-        reason = _failed.get(name, _status[name][1])
+    reason = backend_reason(name)
     if reason is not None:
         entry = REGISTRY[name]
         hint = f"install it with: pip install 'fpiwarp[{entry.extra}]'" if entry.extra else ""

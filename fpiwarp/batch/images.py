@@ -28,11 +28,12 @@ from numpy.typing import ArrayLike
 
 from ..arrays.dispatch import WarpCall
 from ..backends import backend_entry, get_backend
+from ..backends.default import stage_count
 from ..errors import ArgumentError
 from ..io.images import read_image
 from ..maps.transform import Transform
 from ..validation import check_image, check_map_size, check_transform, check_warp_arguments
-from ..warping import Warper
+from ..warping import Warper, on_default_backend
 from .folders import BatchSummary, list_inputs, run_batch
 from .progress import Progress
 
@@ -53,7 +54,7 @@ def warp_images(
     order: int = 1,
     mode: str = "constant",
     cval: float | Sequence[float] = 0,
-    backend: str = "numpy",
+    backend: str | None = None,
     backend_options: Mapping[str, object] | None = None,
     antialias: bool = False,
 ) -> Iterator[np.ndarray]:
@@ -135,8 +136,8 @@ def warp_batch(
         As in :func:`fpiwarp.warp_image`.
     backend : str or None, optional
         As in :func:`fpiwarp.warp_image`; None (default) follows the data
-        (numpy for numpy stacks, "warp" for Warp/DLPack/CUDA arrays,
-        "opencl" for pyopencl arrays).
+        (for numpy stacks the fast default of :func:`fpiwarp.warp_image`,
+        "warp" for Warp/DLPack/CUDA arrays, "opencl" for pyopencl arrays).
     out : array, optional
         An array of the result's shape and dtype, of the input's kind and
         device, written in place and returned (numpy: one host copy).
@@ -178,7 +179,11 @@ def warp_batch(
 
         call = WarpCall(output_shape, order, mode, cval, None, antialias, out, channels)
         return batch_path.warp_batch(images, transforms, call, backend, host_batch=warp_batch)
-    backend = "numpy" if backend is None else backend
+    if backend is None:  # the fast default, as warp_image's
+        return on_default_backend(lambda name: warp_batch(images, transforms, output_shape, order=order, mode=mode,
+                                                          cval=cval, backend=name, antialias=antialias),
+                                  images.dtype, order, mode, antialias, None,
+                                  stage_count(transforms if isinstance(transforms, Transform) else transforms[0]))
     stack = images
     if stack.ndim not in (3, 4) or stack.shape[0] == 0:
         raise ArgumentError(f"images must be a non-empty (N, H, W) or (N, H, W, C) array, got shape {stack.shape}")
