@@ -18,8 +18,9 @@ A draw holds at most as many images as fit the size limit of the target
 (``max_size // rows``), the texture array's layers, the storage buffer's
 size and :data:`CHUNK_BYTES` (:data:`SOFTWARE_CHUNK_BYTES` on a software
 rasterizer such as llvmpipe, where a draw that exceeds the caches is slower
-than single warps); larger groups are several draws, never refused. Outputs wider than the size limit are drawn in column tiles, as
-for one image. Sources beyond the size limit (the single-image path
+than single warps); larger groups are several draws, never refused.
+Outputs wider than the size limit are drawn in column tiles, as for one
+image. Sources beyond the size limit (the single-image path
 tiles those) and drivers without shader storage buffers go image by
 image.
 """
