@@ -19,7 +19,9 @@ rule, in order:
    of a 512 × 512 RGB uint8 image by an FPI on each candidate, after a
    warm-up call that builds its kernels, best of a few calls (about a
    second in all after the kernels are built; never on import, only at
-   the first call that needs it). The ranking is cached on disk in the
+   the first call that needs it). A candidate with per-device choices of
+   its own measures them first (``Backend.tune()``: the opencl backend's
+   work-group tile, :mod:`fpiwarp.backends.opencl.tuning`). The ranking is cached on disk in the
    user's cache directory (``FPIWARP_CACHE_DIR``, else
    ``$XDG_CACHE_HOME/fpiwarp``, else ``~/.cache/fpiwarp``), in a file
    named by a hash of what it depends on: CPU model, machine, OS, Python,
@@ -236,6 +238,12 @@ def calibrate() -> dict:
         if name in SLOW_FIRST_BUILD_ON_CPU and _on_cpu(backend):
             slow.append(name)
             continue
+        tune = getattr(backend, "tune", None)  # a backend's own per-device choices, measured once
+        if tune is not None:
+            try:
+                tune()
+            except Exception as exc:  # noqa: BLE001 - a device failing here is skipped below
+                log.info("fpiwarp: tuning %s failed: %s", name, exc)
         secs, why = _time_backend(name, image, transform)
         if secs is None:
             mark_failed(name, why)

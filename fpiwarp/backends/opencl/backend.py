@@ -237,6 +237,16 @@ class Backend:
     def __repr__(self):
         return f"<fpiwarp opencl backend on {self.device_label!r}>"
 
+    def tune(self, force=False):
+        """Measure this device's warp_image tile once (:mod:`.tuning`; kept on
+        disk); ``force`` measures again. Returns the measurement, or None
+        when it was measured before."""
+        from . import tuning  # noqa: PLC0415
+
+        if tuning.tuned(self) and not force:
+            return None
+        return tuning.tune(self)
+
     # -- programs, kernels and buffers, all cached --------------------------
     def kernel(self, name, options=()):
         """Kernel ``name`` of the program built with ``options``; builds and
