@@ -57,6 +57,7 @@ import platform
 import sys
 import threading
 import time
+from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
 
@@ -376,6 +377,16 @@ def host_backend(dtype=None, order=1, mode="constant", antialias=False, options=
     requested = _requested()
     if requested is not None:
         return requested
+    if options:  # options belong to one backend: a default that depends on the machine would change their meaning
+        if not isinstance(options, Mapping):
+            return REFERENCE  # the reference's checks refuse it
+        from ..errors import ArgumentError  # noqa: PLC0415
+
+        owners = sorted({name for name in REGISTRY for key in options
+                         if backend_capabilities(name).option(key) is not None})
+        named = f" (declared by {', '.join(repr(n) for n in owners)})" if owners else ""
+        raise ArgumentError(f"backend_options {sorted(options)} are options of one backend{named}: name it with "
+                            "backend=")
     try:
         order = int(order)
     except (TypeError, ValueError, OverflowError):

@@ -238,3 +238,11 @@ def test_import_never_measures_nor_probes(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=ROOT, check=True)
     assert out.stdout.strip() == "[] []"
     assert not list(tmp_path.iterdir())
+
+
+def test_backend_options_without_a_backend_are_refused_naming_their_backend(fresh):
+    with pytest.raises(fpiwarp.ArgumentError, match=r"backend_options \['hardware_filter'\] are options of one "
+                                                    r"backend \(declared by 'gl'\): name it with backend="):
+        fpiwarp.warp_image(image(), F, backend_options={"hardware_filter": True})
+    with pytest.raises(fpiwarp.ArgumentError, match="backend_options"):
+        fpiwarp.Warper(F, backend_options={"nope": 1})

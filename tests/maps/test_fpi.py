@@ -105,7 +105,7 @@ def test_reproduces_a_mobius_map(z, pole_offset, size):
         check_quad(w)
     except DegenerateQuadError:
         return  # a Möbius map can bend a quad into a bow-tie: no FPI then
-    from strategies import same_orientation
+    from support.strategies import same_orientation
 
     if not same_orientation(z, w):
         return  # the pole inside the quad turns it inside out: no FPI then

@@ -119,7 +119,7 @@ def test_newton_not_converged_gives_nan(warp, rng):
 )
 def test_fpi_points_inside_the_quad_match_reference(src, dst, seed):
     """Random FPIs: points inside the (convex) source quad, far from the pole."""
-    from strategies import orient_like
+    from support.strategies import orient_like
 
     from fpiwarp.backends.nvwarp.backend import Backend, probe
 
