@@ -30,7 +30,7 @@ import fpiwarp  # noqa: E402
 from fpiwarp.augment import RandomFPI, RandomLocal  # noqa: E402
 from fpiwarp.maps.fpi import FPI  # noqa: E402
 
-from .machine import describe  # noqa: E402
+from .common import machine_facts  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
 SIZES = (256, 512)
@@ -380,7 +380,7 @@ def main(argv=None):
     many, one = fpi_rate(2000 if args.quick else 20000, args.rounds)
     median, worst = dot_test(samples=2 if args.quick else 8)
     agreement = peer_agreement(1 if args.quick else 4)
-    info = describe()
+    info = machine_facts()
     result = {"images_per_second": table, "paired_single_calls_per_second": single,
               "load_average_at_end": list(os.getloadavg()), "fpi_many_per_second": many,
               "fpi_one_by_one_per_second": one,

@@ -49,7 +49,7 @@ from fpiwarp.errors import FpiwarpError
 from fpiwarp.spec import save_spec
 from fpiwarp.warping import Warper
 
-from .machine import cpu_model
+from .common import cpu_model
 
 DEFAULT_OUT = Path(__file__).resolve().parent / "results"
 MAX_MESSAGE = 300

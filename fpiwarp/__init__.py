@@ -5,6 +5,7 @@ from .resources import bind_source_packages
 bind_source_packages()  # kernels/ and glsl/ from this tree, never another checkout's
 
 from .backends import available_backends, backend_capabilities, backend_status
+from .backends.default import default_backend, set_default_backend
 from .batch.images import warp_batch, warp_images
 from .batch.points import map_points_batch
 from .errors import (
@@ -37,7 +38,7 @@ from .maps.thin_plate_spline import ThinPlateSpline
 from .maps.transform import Compound, Transform
 from .sampling.positions import source_positions
 from .spec import load_spec
-from .warping import map_points, warp_image
+from .warping import Warper, map_points, warp_image
 
 __version__ = "0.1.0"
 
@@ -68,13 +69,16 @@ __all__ = [
     "ThreadOwnershipError",
     "ThinPlateSpline",
     "Transform",
+    "Warper",
     "available_backends",
     "backend_capabilities",
     "backend_status",
+    "default_backend",
     "load_spec",
     "map_points",
     "map_points_batch",
     "read_image",
+    "set_default_backend",
     "source_positions",
     "warp_batch",
     "warp_image",

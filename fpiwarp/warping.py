@@ -12,9 +12,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .arrays import array_info, dispatch, labels
-from .backends import backend_capabilities, get_backend
+from .backends import backend_capabilities, backend_reason, get_backend
+from .backends.default import REFERENCE, host_backend, stage_count
 from .backends.protocol import bind
-from .errors import ArgumentError
+from .errors import ArgumentError, BackendUnavailableError, SizeLimitError
 from .maps.transform import Transform
 from .validation import (
     check_antialias,
@@ -151,10 +152,15 @@ def warp_image(
         for float32 images.
     backend : str, optional
         A name from :func:`fpiwarp.backend_status`; default None: from
-        where the image lives, "numpy" for numpy arrays, "opencl" for
-        pyopencl arrays, "gl" for textures, "warp" for Warp, DLPack and
-        CUDA arrays (:class:`~fpiwarp.DeviceMismatchError` where the named
-        backend cannot read the image in place).
+        where the image lives. For numpy arrays the fastest backend that
+        works on this machine (measured once and cached on disk, see
+        :func:`fpiwarp.default_backend` and
+        docs/guides/choosing_a_backend.rst): results within the stated
+        float32 parity of the float64 reference, which ``backend="numpy"``
+        gives exactly. "opencl" for pyopencl arrays, "gl" for textures,
+        "warp" for Warp, DLPack and CUDA arrays
+        (:class:`~fpiwarp.DeviceMismatchError` where the named backend
+        cannot read the image in place).
     backend_options : dict, optional
         Options the backend declares (see
         :func:`fpiwarp.backend_capabilities`), e.g.
@@ -220,10 +226,14 @@ def warp_image(
                                   cval=cval, backend=backend, backend_options=backend_options, antialias=antialias,
                                   out=out, channels=channels)
     if out is not None or channels != "last" or not _on_host(image):
-        return dispatch.warp_image(image, transform, output_shape, order=order, mode=mode, cval=cval,
-                                   backend=backend, backend_options=backend_options, antialias=antialias, out=out,
-                                   channels=channels, host_warp=warp_image)
-    backend = "numpy" if backend is None else backend
+        call = dispatch.WarpCall(output_shape, order, mode, cval, backend_options, antialias, out, channels)
+        return dispatch.warp_image(image, transform, call, backend, host_warp=warp_image)
+    if backend is None:  # the fast default (fpiwarp.backends.default), falling back past a backend that fails
+        return on_default_backend(lambda name: warp_image(image, transform, output_shape, order=order, mode=mode,
+                                                          cval=cval, backend=name, backend_options=backend_options,
+                                                          antialias=antialias),
+                                  getattr(image, "dtype", None), order, mode, antialias, backend_options,
+                                  stage_count(transform), _largest_side(image, output_shape))
     caps = backend_capabilities(backend)
     args = check_warp_arguments(image, transform, output_shape, order, mode, cval, caps, backend, backend_options,
                                 antialias)
@@ -233,6 +243,37 @@ def warp_image(
     return out[:, :, 0] if args.squeeze else out
 
 
+def _largest_side(image, output_shape):
+    """The largest side of the image (H, W[, C]) or of ``output_shape``, or None."""
+    sides = list(np.shape(image)[:2]) if isinstance(image, np.ndarray) else []
+    if isinstance(output_shape, (tuple, list)):
+        sides += [v for v in output_shape if isinstance(v, int)]
+    return max(sides) if sides else None
+
+
+def on_default_backend(run, dtype=None, order=1, mode="constant", antialias=False, options=None, stages=None,
+                       side=None):
+    """``run(name)`` on the fast default's backend for a host call of these
+    options (:func:`fpiwarp.backends.default.host_backend`); where that
+    backend turns out not to work here (its kernels do not build: it is then
+    marked failed, see :func:`fpiwarp.backend_status`), on the next one; a
+    call beyond that backend's limits (a map of more stages than its
+    kernels evaluate, found in a batch's later maps) on the reference."""
+    tried = set()
+    while True:
+        name = host_backend(dtype, order, mode, antialias, options, stages, side)
+        try:
+            return run(name)
+        except BackendUnavailableError:
+            if name in tried or backend_reason(name) is None:
+                raise  # not a backend failing here: the caller's error
+            tried.add(name)
+        except SizeLimitError:
+            if name == REFERENCE:
+                raise
+            return run(REFERENCE)
+
+
 # --- One map and its warp options, ready to warp many images (:class:`Warper`).
 
 
@@ -240,7 +281,9 @@ class Warper:
     """One map and its warp options, ready to warp many images.
 
     Options are checked once here, with the errors of
-    :func:`fpiwarp.warp_image`. Calling the warper on an image returns what
+    :func:`fpiwarp.warp_image`. ``backend=None`` (the default) is the fast
+    default of :func:`fpiwarp.warp_image` for numpy images, chosen here
+    (:attr:`backend` names it). Calling the warper on an image returns what
     ``warp_image(image, transform, output_shape, ...)`` returns; the map is
     bound to the backend once (see :mod:`fpiwarp.batch`). Picklable (for
     Dask workers): the bound map is rebuilt where the warper is unpickled.
@@ -259,8 +302,13 @@ class Warper:
     #: Shapes and dtypes whose checked arguments are kept.
     MAX_PREPARED = 8
 
-    def __init__(self, transform, output_shape=None, *, order=1, mode="constant", cval=0, backend="numpy",
-                 backend_options=None, antialias=False):
+    def __init__(self, transform: Transform, output_shape: tuple[int, int] | None = None, *, order: int = 1,
+                 mode: str = "constant", cval: float | Sequence[float] = 0, backend: str | None = None,
+                 backend_options: Mapping[str, object] | None = None, antialias: bool = False) -> None:
+        self._auto = backend is None  # the fast default: chosen here, for host images
+        if backend is None:
+            backend = host_backend(None, order, mode, antialias, backend_options, stage_count(transform),
+                                   max(output_shape) if isinstance(output_shape, (tuple, list)) else None)
         caps = backend_capabilities(backend)
         order, mode = check_warp_options(transform, order, mode)
         if np.ndim(cval) > 1:
@@ -287,20 +335,35 @@ class Warper:
         return state
 
     @property
-    def bound(self):
+    def bound(self) -> object:
         """The map bound to the backend (built on first use)."""
         if self._bound is None:
             self._bound = bind(get_backend(self.backend), self.transform)
         return self._bound
 
-    def __call__(self, image):
+    def __call__(self, image: object) -> object:
         refuse_masked(image)
         if labels.label_dtype(image) is not None or not isinstance(image, np.ndarray) and \
                 array_info(image).kind != "host":
-            # a label image (fpiwarp.arrays.labels) or a device array (fpiwarp.arrays): warp_image as it is
+            # a label image (fpiwarp.arrays.labels) or a device array (fpiwarp.arrays): warp_image as it is, on
+            # this warper's backend (the array's with the fast default)
             return warp_image(image, self.transform, self.output_shape, order=self.order, mode=self.mode,
-                              cval=self.cval, backend=self.backend, backend_options=self.options,
-                              antialias=self.antialias)
+                              cval=self.cval, backend=None if self._auto else self.backend,
+                              backend_options=self.options, antialias=self.antialias)
+        if not self._auto:
+            return self._warp(image)
+        try:
+            return self._warp(image)
+        except BackendUnavailableError:
+            if backend_reason(self.backend) is None:
+                raise
+            # the default's backend does not work here (now marked failed): the next one, for good
+            replacement = Warper(self.transform, self.output_shape, order=self.order, mode=self.mode,
+                                 cval=self.cval, backend=None, backend_options=self.options, antialias=self.antialias)
+            self.__dict__.update(replacement.__dict__)
+            return self(image)
+
+    def _warp(self, image):
         key = None
         if type(image) is np.ndarray and image.flags.c_contiguous:
             key = (image.shape, image.dtype)

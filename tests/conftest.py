@@ -13,13 +13,18 @@ the draw. Falsifying examples that were found are pinned with @example.
 
 import importlib.util
 import os
+import tempfile
 
 import numpy as np
 import pytest
 from hypothesis import settings
 from support.requirements import use_backend
 
-import fpiwarp
+# What fpiwarp measures and builds (the fast default's ranking, OpenCL binaries) goes to a folder of this run,
+# never to the developer's cache; the fast default is measured once per run, by the first test that needs it.
+os.environ.setdefault("FPIWARP_CACHE_DIR", tempfile.mkdtemp(prefix="fpiwarp-test-cache-"))
+
+import fpiwarp  # noqa: E402
 
 # Triton (installed with PyPI's torch) bundles an LLVM whose static
 # initialisers crash the process when Mesa's LLVM (llvmpipe, the gl backend

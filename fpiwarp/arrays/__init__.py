@@ -14,11 +14,14 @@ numpy arrays (unchanged behaviour):
 * a ``moderngl.Texture`` ("f1", "u2" or "f4"): rendered into a texture of
   the same format and context.
 
-With ``backend=None`` (the default) the backend follows the data:
-numpy for numpy arrays and lists, "opencl" for pyopencl arrays, "gl" for
+With ``backend=None`` (the default) the backend follows the data, as the
+registry declares it (each entry's ``default_for``, ``reads``): for numpy
+images the fast default (:mod:`fpiwarp.backends.default`), for numpy
+points the numpy reference, "opencl" for pyopencl arrays, "gl" for
 textures, "warp" for Warp, DLPack and CUDA arrays. A backend that cannot
 read the data in place (a CUDA tensor for "opencl", a texture for
-"warp") raises :class:`~fpiwarp.DeviceMismatchError`. CPU DLPack arrays
+"warp") raises :class:`~fpiwarp.DeviceMismatchError` naming the backends
+that can. CPU DLPack arrays
 also run on the host backends, through a numpy view.
 
 :func:`fpiwarp.warp_batch` and :func:`fpiwarp.map_points_batch` take

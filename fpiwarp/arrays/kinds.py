@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..backends import default_for_kind
+
 #: DLPack's device types (``__dlpack_device__()[0]``) that fpiwarp reads.
 DLPACK_CPU, DLPACK_CUDA, DLPACK_CUDA_HOST, DLPACK_CUDA_MANAGED = 1, 2, 3, 13
 DLPACK_DEVICE_NAMES = {1: "cpu", 2: "cuda", 3: "cuda_host", 4: "opencl", 7: "vulkan", 8: "metal", 10: "rocm",
@@ -26,9 +28,20 @@ KINDS = {
     "texture": "a moderngl.Texture in its GL context",
 }
 
-#: The backend each kind runs on when the caller names none.
-DEFAULT_BACKENDS = {"numpy": "numpy", "host": "numpy", "warp": "warp", "dlpack": "warp",
-                    "cuda_array_interface": "warp", "opencl": "opencl", "texture": "gl"}
+#: Kinds in host memory that every backend takes as numpy arrays.
+HOST_KINDS = ("numpy", "host")
+#: Kinds that every backend also takes through a numpy view when their data
+#: is in host memory (a CPU torch tensor, a Warp array on "cpu").
+HOST_VIEW_KINDS = ("warp", "dlpack")
+#: Kinds that hold one image, never a stack.
+IMAGE_ONLY_KINDS = ("texture",)
+#: How to bring an array of each kind to the host (in error messages).
+TO_HOST = {"opencl": ".get() it into numpy", "texture": ".read() it into numpy"}
+
+#: The backend each kind runs on when the caller names none, from the
+#: registry (``default_for``). For host kinds this is the float64 reference
+#: that the fast default falls back to (:mod:`fpiwarp.backends.default`).
+DEFAULT_BACKENDS = {kind: default_for_kind(kind) for kind in KINDS}
 
 
 @dataclass(frozen=True)
@@ -58,7 +71,9 @@ class ArrayInfo:
 
     @property
     def default_backend(self) -> str:
-        """The backend used when the caller names none."""
+        """The backend the registry names for this kind when the caller
+        names none (for host kinds the reference, "numpy", which the fast
+        default of :func:`choose_backend` falls back to)."""
         return DEFAULT_BACKENDS[self.kind]
 
 
@@ -126,5 +141,8 @@ def array_info(obj) -> ArrayInfo:
 
 
 def choose_backend(info: ArrayInfo, backend: str | None) -> str:
-    """``backend``, or the default of the array's kind when it is None."""
+    """``backend``, or the registry's default of the array's kind when it
+    is None. Host arrays with ``backend=None`` do not come here: the entry
+    points choose their fast default per call
+    (:func:`fpiwarp.backends.default.host_backend`)."""
     return info.default_backend if backend is None else backend

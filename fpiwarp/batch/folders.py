@@ -218,7 +218,7 @@ def run_batch(
     pattern=None,
     jobs=1,
     overwrite=False,
-    backend="numpy",
+    backend=None,
     order=1,
     mode="constant",
     cval=0,

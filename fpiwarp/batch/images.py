@@ -27,19 +27,17 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..arrays import labels
-from ..backends import get_backend
+from ..arrays.dispatch import WarpCall
+from ..backends import backend_entry, get_backend
+from ..backends.default import stage_count
 from ..block.many import is_many_maps
 from ..errors import ArgumentError
 from ..io.images import read_image
 from ..maps.transform import Transform
 from ..validation import check_image, check_map_size, check_transform, check_warp_arguments, refuse_masked
-from ..warping import Warper
+from ..warping import Warper, on_default_backend
 from .folders import BatchSummary, list_inputs, run_batch
 from .progress import Progress
-
-#: Backends whose ``warp_batch`` reads each map only as ``.inverse.stages()``
-#: (the block): they get each map's inverse computed once.
-KERNEL_BACKENDS = ("opencl", "warp", "gl")
 
 __all__ = ["BatchSummary", "Progress", "Warper", "list_inputs", "run_batch", "warp_batch", "warp_images"]
 
@@ -59,7 +57,7 @@ def warp_images(
     order: int = 1,
     mode: str = "constant",
     cval: float | Sequence[float] = 0,
-    backend: str = "numpy",
+    backend: str | None = None,
     backend_options: Mapping[str, object] | None = None,
     antialias: bool = False,
 ) -> Iterator[np.ndarray]:
@@ -144,8 +142,8 @@ def warp_batch(
         As in :func:`fpiwarp.warp_image`.
     backend : str or None, optional
         As in :func:`fpiwarp.warp_image`; None (default) follows the data
-        (numpy for numpy stacks, "warp" for Warp/DLPack/CUDA arrays,
-        "opencl" for pyopencl arrays).
+        (for numpy stacks the fast default of :func:`fpiwarp.warp_image`,
+        "warp" for Warp/DLPack/CUDA arrays, "opencl" for pyopencl arrays).
     out : array, optional
         An array of the result's shape and dtype, of the input's kind and
         device, written in place and returned (numpy: one host copy).
@@ -189,10 +187,13 @@ def warp_batch(
     if not isinstance(images, np.ndarray) or out is not None or channels != "last":
         from . import arrays as batch_path  # noqa: PLC0415 - device arrays, out= and layouts
 
-        return batch_path.warp_batch(images, transforms, output_shape, order=order, mode=mode, cval=cval,
-                                     backend=backend, antialias=antialias, out=out, channels=channels,
-                                     host_batch=warp_batch)
-    backend = "numpy" if backend is None else backend
+        call = WarpCall(output_shape, order, mode, cval, None, antialias, out, channels)
+        return batch_path.warp_batch(images, transforms, call, backend, host_batch=warp_batch)
+    if backend is None:  # the fast default, as warp_image's
+        return on_default_backend(lambda name: warp_batch(images, transforms, output_shape, order=order, mode=mode,
+                                                          cval=cval, backend=name, antialias=antialias),
+                                  images.dtype, order, mode, antialias, None,
+                                  stage_count(transforms if isinstance(transforms, Transform) else transforms[0]))
     stack = images
     if stack.ndim not in (3, 4) or stack.shape[0] == 0:
         raise ArgumentError(f"images must be a non-empty (N, H, W) or (N, H, W, C) array, got shape {stack.shape}")
@@ -212,7 +213,7 @@ def warp_batch(
             check_transform(t, "transforms")
         if many:  # FPIs of one stage each, checked when the stack was built
             pass
-        elif backend in KERNEL_BACKENDS:
+        elif backend_entry(backend).block_maps:
             # Each further map's inverse and its stages computed once, for the check and the block alike.
             from ..arrays.dispatch import Inverted  # noqa: PLC0415 - loaded with the first batch
 

@@ -5,11 +5,10 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..backends import backend_capabilities, get_backend
+from ..backends import backend_capabilities, backend_entry, get_backend
 from ..errors import ArgumentError
 from ..maps.transform import Transform
 from ..validation import check_map_size, check_point_count, check_points, check_transform
-from .images import KERNEL_BACKENDS
 
 __all__ = ["map_points_batch"]
 
@@ -81,7 +80,7 @@ def map_points_batch(
         raise ArgumentError(f"got {len(maps)} maps for {n} point sets; give one map or one per set")
     caps = backend_capabilities(backend)
     check_point_count(pts[0] if n else pts, caps, backend)
-    if backend in KERNEL_BACKENDS and n:
+    if backend_entry(backend).block_maps and n:
         # Each map's stages computed once, for the check and the block alike.
         from ..arrays.dispatch import InverseBlock  # noqa: PLC0415 - loaded with the first batch
 

@@ -163,7 +163,9 @@ def _print_summary(summary):
 
 
 def cmd_backends(args):
-    """One line per backend: available, or why not and what to install."""
+    """One line per backend: available, or why not and what to install; then the default."""
+    from ..backends.default import default_backend  # noqa: PLC0415 - measures on its first use
+
     for name, reason in backend_status().items():
         if reason is None:
             print(f"{name:8} available")
@@ -173,6 +175,8 @@ def cmd_backends(args):
         if entry.system:
             hint += f"{'; ' if hint else ' ('}needs {entry.system}"
         print(f"{name:8} unavailable: {reason}{hint + ')' if hint else ''}")
+    print(f"default: {default_backend()} (the fastest that works here, for numpy images; --backend numpy for "
+          "the float64 reference)")
     return 0
 
 
@@ -286,7 +290,8 @@ def _preview_web(args, image, info, transform, overlays):
 
 
 def _add_warp_options(p):
-    p.add_argument("--backend", default="numpy", help="backend name (see 'fpiwarp backends'); default numpy")
+    p.add_argument("--backend", default=None, help="backend name (see 'fpiwarp backends'); default: the fastest that "
+                   "works here ('fpiwarp backends' names it); numpy for the float64 reference")
     p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
     p.add_argument("--mode", choices=MODES, default="constant", help="border mode (default constant)")
     p.add_argument("--antialias", action="store_true",
@@ -334,7 +339,8 @@ def build_parser():
 
     p = sub.add_parser("demo", help="warp the bundled sample picture", description=cmd_demo.__doc__)
     p.add_argument("output", nargs="?", default=DEMO_OUTPUT, help=f"output file (default {DEMO_OUTPUT})")
-    p.add_argument("--backend", default="numpy", help="backend name (see 'fpiwarp backends'); default numpy")
+    p.add_argument("--backend", default=None, help="backend name (see 'fpiwarp backends'); default: the fastest that "
+                   "works here ('fpiwarp backends' names it); numpy for the float64 reference")
     p.add_argument("--overwrite", action="store_true", help="replace the output if it exists")
     p.set_defaults(func=cmd_demo)
 

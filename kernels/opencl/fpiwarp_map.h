@@ -350,48 +350,71 @@ FW_FN fw_rows_t fw_stage_rows(fw_block_t block, int k)
     return (fw_rows_t)(block + 1 + k * FW_STAGE_ROWS);
 }
 
-/* one stage, its kind read from its header row */
-FW_FN fw_c fw_stage(fw_rows_t rows, fw_c z)
-{
-    return fw_stage_kind(rows, z, (int)rows[0], (int)rows[1], (int)rows[2], (int)rows[3]);
-}
-
-/* ---- the whole block (reference.evaluate) ------------------------------ */
+/* ---- the kind chain: every stage of the block, once --------------------- */
+/* FW_FOR_EACH_STAGE(block, APPLY) runs APPLY(rows, core, n_centers, n_regions,
+ * newton_iters) for each stage of the block, in order. Built with the kind of
+ * map (FW_KIND_0 .. FW_KIND_7, see kind_options), the stages are unrolled with
+ * their kinds as constants, which lets the compiler drop the other cores and
+ * vectorize the map across work-items; without, a loop reads each stage's kind
+ * from its header row. fw_map and fw_map_wirtinger both walk the block here. */
 #if FW_MAX_STAGES > 8
-#error "fw_map unrolls FW_KIND_0 .. FW_KIND_7 only: FW_MAX_STAGES grew"
+#error "FW_FOR_EACH_STAGE unrolls FW_KIND_0 .. FW_KIND_7 only: FW_MAX_STAGES grew"
 #endif
-FW_FN fw_c fw_map(fw_block_t block, fw_c z)
-{
+#define FW_STAGE_OF(block, k, APPLY, kind) APPLY(fw_stage_rows(block, k), kind)
 #ifdef FW_KIND_0
-#define FW_APPLY(k, kind) z = fw_stage_kind(fw_stage_rows(block, k), z, kind)
-    FW_APPLY(0, FW_KIND_0);
+#define FW_STAGE_0(block, APPLY) FW_STAGE_OF(block, 0, APPLY, FW_KIND_0);
 #ifdef FW_KIND_1
-    FW_APPLY(1, FW_KIND_1);
+#define FW_STAGE_1(block, APPLY) FW_STAGE_OF(block, 1, APPLY, FW_KIND_1);
+#else
+#define FW_STAGE_1(block, APPLY)
 #endif
 #ifdef FW_KIND_2
-    FW_APPLY(2, FW_KIND_2);
+#define FW_STAGE_2(block, APPLY) FW_STAGE_OF(block, 2, APPLY, FW_KIND_2);
+#else
+#define FW_STAGE_2(block, APPLY)
 #endif
 #ifdef FW_KIND_3
-    FW_APPLY(3, FW_KIND_3);
+#define FW_STAGE_3(block, APPLY) FW_STAGE_OF(block, 3, APPLY, FW_KIND_3);
+#else
+#define FW_STAGE_3(block, APPLY)
 #endif
 #ifdef FW_KIND_4
-    FW_APPLY(4, FW_KIND_4);
+#define FW_STAGE_4(block, APPLY) FW_STAGE_OF(block, 4, APPLY, FW_KIND_4);
+#else
+#define FW_STAGE_4(block, APPLY)
 #endif
 #ifdef FW_KIND_5
-    FW_APPLY(5, FW_KIND_5);
+#define FW_STAGE_5(block, APPLY) FW_STAGE_OF(block, 5, APPLY, FW_KIND_5);
+#else
+#define FW_STAGE_5(block, APPLY)
 #endif
 #ifdef FW_KIND_6
-    FW_APPLY(6, FW_KIND_6);
+#define FW_STAGE_6(block, APPLY) FW_STAGE_OF(block, 6, APPLY, FW_KIND_6);
+#else
+#define FW_STAGE_6(block, APPLY)
 #endif
 #ifdef FW_KIND_7
-    FW_APPLY(7, FW_KIND_7);
-#endif
-#undef FW_APPLY
+#define FW_STAGE_7(block, APPLY) FW_STAGE_OF(block, 7, APPLY, FW_KIND_7);
 #else
-    int n_stages = (int)block[0].x;
-    for (int k = 0; k < n_stages; ++k)
-        z = fw_stage(fw_stage_rows(block, k), z);
+#define FW_STAGE_7(block, APPLY)
 #endif
+#define FW_FOR_EACH_STAGE(block, APPLY)                                                                  \
+    FW_STAGE_0(block, APPLY) FW_STAGE_1(block, APPLY) FW_STAGE_2(block, APPLY) FW_STAGE_3(block, APPLY) \
+    FW_STAGE_4(block, APPLY) FW_STAGE_5(block, APPLY) FW_STAGE_6(block, APPLY) FW_STAGE_7(block, APPLY)
+#else
+#define FW_FOR_EACH_STAGE(block, APPLY)                                                                  \
+    for (int fw_k = 0; fw_k < (int)(block)[0].x; ++fw_k) {                                               \
+        fw_rows_t fw_rows_k = fw_stage_rows(block, fw_k);                                                \
+        APPLY(fw_rows_k, (int)fw_rows_k[0], (int)fw_rows_k[1], (int)fw_rows_k[2], (int)fw_rows_k[3]);   \
+    }
+#endif
+
+/* ---- the whole block (reference.evaluate) ------------------------------ */
+FW_FN fw_c fw_map(fw_block_t block, fw_c z)
+{
+#define FW_APPLY(rows, ...) z = fw_stage_kind(rows, z, __VA_ARGS__)
+    FW_FOR_EACH_STAGE(block, FW_APPLY)
+#undef FW_APPLY
     return z;
 }
 
@@ -464,38 +487,9 @@ FW_FN fw_c fw_map_wirtinger(fw_block_t block, fw_c z, fw_c *dz, fw_c *dzb)
 {
     *dz = fw_cx(1.0f, 0.0f);
     *dzb = fw_cx(0.0f, 0.0f);
-#ifdef FW_KIND_0
-#define FW_APPLY_W(k, kind) z = fw_stage_wirtinger_kind(fw_stage_rows(block, k), z, dz, dzb, kind)
-    FW_APPLY_W(0, FW_KIND_0);
-#ifdef FW_KIND_1
-    FW_APPLY_W(1, FW_KIND_1);
-#endif
-#ifdef FW_KIND_2
-    FW_APPLY_W(2, FW_KIND_2);
-#endif
-#ifdef FW_KIND_3
-    FW_APPLY_W(3, FW_KIND_3);
-#endif
-#ifdef FW_KIND_4
-    FW_APPLY_W(4, FW_KIND_4);
-#endif
-#ifdef FW_KIND_5
-    FW_APPLY_W(5, FW_KIND_5);
-#endif
-#ifdef FW_KIND_6
-    FW_APPLY_W(6, FW_KIND_6);
-#endif
-#ifdef FW_KIND_7
-    FW_APPLY_W(7, FW_KIND_7);
-#endif
+#define FW_APPLY_W(rows, ...) z = fw_stage_wirtinger_kind(rows, z, dz, dzb, __VA_ARGS__)
+    FW_FOR_EACH_STAGE(block, FW_APPLY_W)
 #undef FW_APPLY_W
-#else
-    int n_stages = (int)block[0].x;
-    for (int k = 0; k < n_stages; ++k) {
-        fw_rows_t rows = fw_stage_rows(block, k);
-        z = fw_stage_wirtinger_kind(rows, z, dz, dzb, (int)rows[0], (int)rows[1], (int)rows[2], (int)rows[3]);
-    }
-#endif
     return z;
 }
 #endif /* FW_AA */

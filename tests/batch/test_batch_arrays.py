@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from support.array_cases import FakeCudaArray, fails, make_image, require_library
+from support.array_cases import FakeCudaArray, fails, forbid_host_copies, make_image, require_library
 from support.batch_cases import batches, loop, make_map
 
 import fpiwarp
@@ -59,8 +59,7 @@ def forbid_warp_host_copies(monkeypatch, wp):
 
 def forbid_opencl_host_copies(monkeypatch, cla, limit):
     """Readbacks, Array.get and host arrays of ``limit`` bytes or more in
-    enqueue_copy fail (test_arrays_opencl's rule), and the host batch path."""
-    from support.array_cases import forbid_host_copies
+    enqueue_copy fail (support.array_cases' rule), and the host batch path."""
 
     from fpiwarp.backends.opencl import batch as opencl_batch
 

@@ -356,7 +356,7 @@ def test_warp_image_gives_cval_where_the_newton_inverse_cannot_solve(monkeypatch
     with pytest.raises(fpiwarp.InverseNotConvergedError):
         f.inverse([[20.0, 10.0]])
     img = np.full((24, 48), 200, np.uint8)
-    out = fpiwarp.warp_image(img, f, cval=7)
+    out = fpiwarp.warp_image(img, f, cval=7, backend="numpy")  # the host Newton (the kernels have their own)
     assert np.all(out == 7)
 
 

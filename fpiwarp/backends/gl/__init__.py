@@ -53,6 +53,7 @@ from .context import (
     probe,
     release_shared_context,
     shared_context,
+    usable_here,
 )
 from .mesh import GL_CLIP_DISTANCE0, MeshBuffers, draw_culled_mesh, grid_mesh
 from .programs import (
@@ -80,5 +81,5 @@ __all__ = [
     "create_context", "draw_culled_mesh", "flat_value_sources", "fragment_defines",
     "grid_mesh", "map_kind", "owner_thread", "probe", "release_shared_context",
     "renders_rgb32ui", "set_uniform", "shader_source", "shared_context", "stage_kinds", "stages_define",
-    "warp_image_mesh",
+    "usable_here", "warp_image_mesh",
 ]

@@ -121,3 +121,28 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
         if not warper.targets.owns(caller):
             caller.use()
     return target
+
+
+# --- The registry's array calls of the gl backend (its entry's ``arrays``): textures are images,
+# warped one at a time (no stacks, no points).
+
+
+def writes_host_out():
+    """Whether warp_image writes a numpy ``out=`` in place: no (host calls copy into it)."""
+    return False
+
+
+def warp_image(image, info, transform, call):
+    """warp_image on a texture, into a texture (``call``: :class:`fpiwarp.arrays.dispatch.WarpCall`)."""
+    from ...arrays.dispatch import check_device_warp  # noqa: PLC0415
+
+    out = call.out
+    if call.channels != "last" or out is not None and array_info(out).kind != "texture":
+        raise ArgumentError("a texture is warped into a texture of its channels: leave channels='last' and "
+                            "give a moderngl.Texture as out=")
+    dtype, shape = texture_format(image)
+    oshape, order, mode, cval, options, inverted = check_device_warp(shape, dtype, transform, call, "gl")
+    if options.get("hardware_filter"):
+        raise ArgumentError("hardware_filter is not available for textures warped in place")
+    return warp_texture(image, inverted, oshape, out, order=order, mode=mode, cval=cval,
+                        antialias=bool(options.get("antialias")))

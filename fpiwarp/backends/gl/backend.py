@@ -39,6 +39,13 @@ class Backend:
     def ctx(self):
         return self.warper.ctx
 
+    @property
+    def device_label(self):
+        """The GL renderer and version of the shared context (e.g. "llvmpipe (LLVM 15.0.6, 256 bits), 4.5 (Core
+        Profile) Mesa 22.3.6")."""
+        info = shared_context().info
+        return f"{info.get('GL_RENDERER', '?')}, {info.get('GL_VERSION', '?')}"
+
     def map_points(self, transform, points):
         check_thread()
         return self.warper.map_points(transform, points)

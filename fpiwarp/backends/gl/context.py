@@ -79,6 +79,20 @@ def check_thread():
         )
 
 
+def usable_here():
+    """None where the calling thread may use the backend without taking the
+    context from another thread (it owns the context, or none exists and
+    this is the main thread), else why not. The fast default
+    (:mod:`fpiwarp.backends.default`) asks this, so that it never makes a
+    worker thread the owner behind the caller's back."""
+    owner = _shared.get("thread") if _shared.get("ctx") is not None else None
+    here = threading.get_ident()
+    if owner == here or owner is None and threading.current_thread() is threading.main_thread():
+        return None
+    return "its OpenGL context belongs to another thread" if owner is not None else \
+        "the fast default creates its OpenGL context in the main thread only"
+
+
 def claim_shared_context():
     """Make the calling thread the owner of the gl backend: create the
     shared context here unless this thread has it already. Raises

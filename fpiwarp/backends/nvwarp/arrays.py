@@ -163,3 +163,102 @@ def map_points(transform, points, info, out):
         wp.launch(warp_kernels.narrow_points, dim=count, inputs=[flat, dst2], device=arr.device)
     settle(backend, out)
     return result
+
+
+# --- The registry's array calls of the warp backend (its entry's ``arrays``).
+
+
+def writes_host_out():
+    """Whether warp_image writes a numpy ``out=`` in place: where the backend
+    runs on the CPU, numpy memory is its own device's."""
+    from .. import get_backend  # noqa: PLC0415
+
+    return get_backend("warp").device.is_cpu
+
+
+def warp_image(image, info, transform, call):
+    """warp_image on a Warp, DLPack or CUDA array (or numpy with a numpy
+    ``out=`` on the CPU), in place (``call``: :class:`fpiwarp.arrays.dispatch.WarpCall`)."""
+    from ...arrays.dispatch import check_device_warp, hwc_shape, output_layout  # noqa: PLC0415
+
+    channels, out = call.channels, call.out
+    backend, src, dtype, given = image_source(image, info, channels)
+    shape, squeeze = hwc_shape(given, channels)
+    oshape, order, mode, cval, options, inverted = check_device_warp(shape, dtype, transform, call, "warp")
+    layout = output_layout(oshape, shape[2], squeeze, channels)
+    result, target = output_target(backend, info, dtype, layout, out)
+    if overlaps(src, target):
+        raise overlap_error("the image")
+    wp = warp_module()
+    backend.warp_into(src, inverted, oshape, as_hwc(wp, target, channels), order=order, mode=mode, cval=cval,
+                      **options)
+    settle(backend, out)
+    return result
+
+
+def as_nhwc(wp, arr, channels):
+    """An (N, H, W, C) view of an (N, H, W), (N, H, W, C) or, channels
+    first, (N, C, H, W) Warp array (no copy)."""
+    if arr.ndim == 3:
+        item = wp.types.type_size_in_bytes(arr.dtype)
+        return wp.array(ptr=arr.ptr, dtype=arr.dtype, shape=(*arr.shape, 1), strides=(*arr.strides, item),
+                        device=arr.device)
+    if channels == "first":
+        return arr.transpose((0, 2, 3, 1))
+    return arr
+
+
+def warp_batch(images, info, transforms, call):
+    """warp_batch on a Warp, DLPack or CUDA stack, in one launch."""
+    from ...arrays.dispatch import output_layout  # noqa: PLC0415
+    from ...batch.arrays import check_maps, map_list, stack_shape  # noqa: PLC0415
+
+    channels, out = call.channels, call.out
+    wp = warp_module()
+    arr = convert.to_warp(wp, images, info)
+    n, hwc, squeeze = stack_shape(tuple(arr.shape), channels)
+    dtype = numpy_dtype(wp, arr)
+    maps = map_list(transforms, n)
+    oshape, order, mode, cval, options, inverted = check_maps(maps, hwc, dtype, call, "warp")
+    backend = backend_on("cpu" if arr.device.is_cpu else str(arr.device.alias))
+    layout = (n, *output_layout(oshape, hwc[2], squeeze, channels))
+    result, target = output_target(backend, info, dtype, layout, out)
+    if overlaps(arr, target):
+        raise overlap_error("images")
+    backend.warp_batch_into(as_nhwc(wp, arr, channels), inverted, oshape, as_nhwc(wp, target, channels),
+                            order=order, mode=mode, cval=cval, **options)
+    settle(backend, out)
+    return result
+
+
+def map_points_batch(transforms, points, info, out):
+    """map_points_batch on a Warp, DLPack or CUDA array of (N, ..., 2) float32 or float64 points."""
+    from fpiwarp.kernels.nvwarp import points as warp_kernels  # noqa: PLC0415
+
+    from ...batch.arrays import check_point_maps  # noqa: PLC0415
+
+    wp = warp_module()
+    arr = convert.to_warp(wp, points, info)
+    dtype = numpy_dtype(wp, arr)
+    n, p, maps = check_point_maps(transforms, tuple(arr.shape), "warp")
+    if dtype not in (np.float32, np.float64) or not arr.is_contiguous:
+        raise ArgumentError(f"device points must be a contiguous float32 or float64 (N, ..., 2) array, got "
+                            f"{wp.types.type_repr(arr.dtype)}{'' if arr.is_contiguous else ' (not contiguous)'}")
+    backend = backend_on("cpu" if arr.device.is_cpu else str(arr.device.alias))
+    result, target = output_target(backend, info, dtype, tuple(arr.shape), out)
+    if overlaps(arr, target):
+        raise overlap_error("points")
+    if not target.is_contiguous:
+        raise ArgumentError("out= must be contiguous for map_points_batch")
+    if dtype == np.float64:
+        src, dst = (wp.array(ptr=a.ptr, dtype=wp.vec2d, shape=(n, p), device=a.device) for a in (arr, target))
+        backend.map_points_batch_into(maps, src, dst)
+    elif n * p:  # float32 widened on the device, mapped, narrowed back
+        flat = wp.empty((n, p), dtype=wp.vec2d, device=arr.device)
+        src, dst = (wp.array(ptr=a.ptr, dtype=wp.float32, shape=(n * p, 2), device=a.device) for a in (arr, target))
+        wide = wp.array(ptr=flat.ptr, dtype=wp.vec2d, shape=(n * p,), device=flat.device)
+        wp.launch(warp_kernels.widen_points, dim=n * p, inputs=[src, wide], device=arr.device)
+        backend.map_points_batch_into(maps, flat, flat)
+        wp.launch(warp_kernels.narrow_points, dim=n * p, inputs=[wide, dst], device=arr.device)
+    settle(backend, out)
+    return result

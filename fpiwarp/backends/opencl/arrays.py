@@ -194,7 +194,7 @@ def finish_output(be, result):
     return result
 
 
-def map_points(transform, points, out):
+def map_points(transform, points, info, out):
     """Map an (..., 2) pyopencl array of the device's point dtype in place."""
     be = backend()
     check_array(points, be, "points")
@@ -207,4 +207,100 @@ def map_points(transform, points, out):
         raise overlap_error("points")
     n = int(np.prod(points.shape[:-1]))
     be.map_points_into(transform, points.reshape(n, 2), target.reshape(n, 2))
+    return finish_output(be, result)
+
+
+# --- The registry's array calls of the opencl backend (its entry's ``arrays``).
+
+
+def writes_host_out():
+    """Whether warp_image writes a numpy ``out=`` in place: no (host calls copy into it)."""
+    return False
+
+
+def warp_image(image, info, transform, call):
+    """warp_image on a pyopencl array (``call``: :class:`fpiwarp.arrays.dispatch.WarpCall`)."""
+    with lock:  # the kept source and output arrays
+        return _warp_image_locked(image, transform, call)
+
+
+def _warp_image_locked(image, transform, call):
+    from ...arrays.dispatch import check_device_warp, hwc_shape, output_layout  # noqa: PLC0415
+
+    channels, out = call.channels, call.out
+    be, src, dtype, given = image_source(image, channels)
+    shape, squeeze = hwc_shape(given, channels)
+    oshape, order, mode, cval, options, inverted = check_device_warp(shape, dtype, transform, call, "opencl")
+    layout = output_layout(oshape, shape[2], squeeze, channels)
+    result, target = output_target(be, dtype, layout, out)
+    if shares_buffer(image, target):
+        raise overlap_error("the image")
+    c = shape[2]
+    if channels == "first" and not squeeze:  # (rows, cols, C) on the device, then permuted into the result
+        written = kept(be, "written", (*oshape, c), dtype)
+        be.warp_into(src, inverted, oshape, written, order=order, mode=mode, cval=cval, **options)
+        permute(be, written, "to_first", dst=target)
+    else:
+        be.warp_into(src, inverted, oshape, target.reshape(*oshape, c), order=order, mode=mode, cval=cval,
+                     **options)
+    return finish_output(be, result)
+
+
+def warp_batch(images, info, transforms, call):
+    """warp_batch on an (N, H, W[, C]) pyopencl stack, one launch per kind of map."""
+    from ...arrays.dispatch import output_layout  # noqa: PLC0415
+    from ...batch.arrays import check_maps, map_list, stack_shape  # noqa: PLC0415
+    from . import batch as opencl_batch  # noqa: PLC0415
+
+    channels, out = call.channels, call.out
+    with lock:  # the kept source and output arrays
+        be = backend()
+        check_array(images, be, "images")
+        sync_before(images, be)
+        n, (h, w, c), squeeze = stack_shape(tuple(images.shape), channels)
+        maps = map_list(transforms, n)
+        oshape, order, mode, cval, options, inverted = check_maps(maps, (h, w, c), images.dtype, call,
+                                                                   "opencl")
+        result, target = output_target(be, images.dtype, (n, *output_layout(oshape, c, squeeze, channels)), out)
+        if shares_buffer(images, target):
+            raise overlap_error("images")
+        src = _stack_source(be, images, (n, h, w, c), channels)
+        first = channels == "first" and not squeeze
+        written = kept(be, "batch_written", (n, *oshape, c), images.dtype) if first else target.reshape(n, *oshape, c)
+        opencl_batch.warp_arrays(be, src, written, inverted, order=order, mode=mode, cval=cval, **options)
+        if first:
+            permute(be, written, "to_first", dst=target)
+        return finish_output(be, result)
+
+
+def _stack_source(be, images, shape, channels):
+    """The stack as an (N, H, W, C) array the kernels read in place: the
+    caller's, or a kept copy on the device (permuted from channels-first,
+    or with the sampler's slack past the end)."""
+    if images.ndim == 4 and channels == "first":
+        return permute(be, images, "to_last", dst=kept(be, "batch_source", shape, images.dtype))
+    src = images.reshape(shape)
+    if shape[3] * images.dtype.itemsize < 4 and images.base_data.size < images.nbytes + be.image_slack:
+        padded = kept(be, "batch_source", shape, images.dtype)
+        copy_device(be, padded, src)
+        return padded
+    return src
+
+
+def map_points_batch(transforms, points, info, out):
+    """map_points_batch on an (N, ..., 2) pyopencl array of the device's point dtype."""
+    from ...batch.arrays import check_point_maps  # noqa: PLC0415
+    from . import batch as opencl_batch  # noqa: PLC0415
+
+    be = backend()
+    check_array(points, be, "points")
+    n, p, maps = check_point_maps(transforms, tuple(points.shape), "opencl")
+    if points.dtype != be.point_dtype:
+        raise ArgumentError(f"device points on this OpenCL device must be (N, ..., 2) {be.point_dtype}, got "
+                            f"{points.dtype}")
+    sync_before(points, be)
+    result, target = output_target(be, points.dtype, tuple(points.shape), out)
+    if shares_buffer(points, target):
+        raise overlap_error("points")
+    opencl_batch.map_points_arrays(be, maps, points.reshape(n, p, 2), target.reshape(n, p, 2))
     return finish_output(be, result)

@@ -36,8 +36,9 @@ from ... import resources
 from ...block import describe
 from ...block.codegen import opencl_preamble
 from ...block.sampling_rules import MODES
-from ...errors import SizeLimitError
+from ...errors import BackendUnavailableError, SizeLimitError
 from ..lru import LruCache
+from . import build_cache
 from .prepared import IMAGE_SLACK, ZERO_COPY_MIN_BYTES, BoundMap, JobCache
 from .tiles import global_size, tiled_program
 
@@ -106,16 +107,39 @@ def choose_device(wanted=None):
     raise RuntimeError(f"no OpenCL device matches {wanted!r} (from {ENV_DEVICE} or device=); found: {names}")
 
 
+#: A program every OpenCL compiler builds: the probe's test that the device's
+#: compiler works here (PoCL 3.0-rc2 from PyPI on an AVX-512 CPU fails every
+#: build with "unknown target CPU 'generic'").
+PROBE_SOURCE = "__kernel void fw_probe(__global float *a) { a[get_global_id(0)] = 1.0f; }"
+
+
+def build_failure(exc, label):
+    """The one-line reason of a failed build (``exc`` from pyopencl), naming the device."""
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    errors = [line for line in lines if line.lower().startswith(("error", "fatal"))]
+    detail = (errors or lines[-1:] or [type(exc).__name__])[0]
+    detail = detail.split(".cl:", 1)[-1].lstrip("0123456789: ") if ".cl:" in detail else detail
+    for prefix in ("fatal error:", "error:"):
+        detail = detail[len(prefix):].strip() if detail.lower().startswith(prefix) else detail
+    return f"the OpenCL device {label!r} cannot build fpiwarp's kernels ({detail[:200]})"
+
+
 def probe():
-    """None if an OpenCL device can run the kernels here, else why not."""
+    """None if an OpenCL device can run the kernels here, else why not: a
+    driver, a device, and a compiler that builds a test program for it."""
     try:
-        _import_cl()
+        cl = _import_cl()
     except ImportError as exc:
         return f"pyopencl is not installed ({exc})"
     try:
-        choose_device()
+        label, device = choose_device()
+        context = cl.Context([device])
     except Exception as exc:  # driver errors come in many types
         return str(exc)
+    try:
+        cl.Program(context, PROBE_SOURCE).build()
+    except Exception as exc:  # noqa: BLE001 - a compiler that fails for this CPU: not available, with the reason
+        return build_failure(exc, label)
     return None
 
 
@@ -213,6 +237,16 @@ class Backend:
     def __repr__(self):
         return f"<fpiwarp opencl backend on {self.device_label!r}>"
 
+    def tune(self, force=False):
+        """Measure this device's warp_image tile once (:mod:`.tuning`; kept on
+        disk); ``force`` measures again. Returns the measurement, or None
+        when it was measured before."""
+        from . import tuning  # noqa: PLC0415
+
+        if tuning.tuned(self) and not force:
+            return None
+        return tuning.tune(self)
+
     # -- programs, kernels and buffers, all cached --------------------------
     def kernel(self, name, options=()):
         """Kernel ``name`` of the program built with ``options``; builds and
@@ -220,10 +254,34 @@ class Backend:
         options = tuple(self.BASE_OPTIONS) + tuple(options)
         kernels = self._kernels.get(options)
         if kernels is None:
-            program = self._cl.Program(self.context, self._source).build(options=list(options))
+            program = self._build(options)
             kernels = {k.function_name: k for k in program.all_kernels()}
             self._kernels[options] = kernels
         return kernels[name]
+
+    def _build(self, options):
+        """The program built with ``options``: from this device's binary in the
+        disk cache (:mod:`.build_cache`) when there is one, else from source
+        (then stored). A build that fails marks the backend failed and raises
+        BackendUnavailableError with the compiler's first error."""
+        cl = self._cl
+        cached = build_cache.load(self, options)
+        if cached is not None:
+            try:
+                return cl.Program(self.context, [self.device], [cached]).build(options=list(options))
+            except cl.Error:  # a stale or foreign binary: built from source below
+                build_cache.forget(self, options)
+        try:
+            program = cl.Program(self.context, self._source).build(options=list(options))
+        except cl.Error as exc:
+            from .. import mark_failed  # noqa: PLC0415
+
+            reason = build_failure(exc, self.device_label)
+            mark_failed("opencl", reason)
+            raise BackendUnavailableError(f"backend 'opencl' is unavailable: {reason}; choose another backend "
+                                          f"or another device ({ENV_DEVICE})") from None
+        build_cache.store(self, options, program)
+        return program
 
     def _buffer(self, role, nbytes):
         """A device buffer for ``role`` of exactly ``nbytes``, reused across

@@ -1,5 +1,8 @@
 """Work-group tiles of the ``"opencl"`` backend's warp_image on CPUs.
 
+The tile is measured per device (:mod:`.tuning`); the history below is
+how tiles came to be.
+
 warp_image's work-groups were one row's pixels (``launch_width``). On a
 CPU (PoCL), a group is one task for one thread, and the threads take
 groups in turn, so a thread's consecutive groups were rows far apart and
@@ -20,8 +23,11 @@ one-row groups (``opencl_backend.launch_width``). This module imports no
 other backend module: the backend passes itself in.
 """
 
-#: Tile width (pixels) and height (rows) on CPUs; the width is a multiple
-#: of the 8 pixels one work-item samples (VECTOR_LANES_CPU).
+from .tuning import tile_for, usable
+
+#: Tile width (pixels) and height (rows) on CPUs until one is measured for
+#: the device (:mod:`.tuning`); the width is a multiple of the 8 pixels one
+#: work-item samples (VECTOR_LANES_CPU).
 TILE_X_CPU, TILE_ROWS_CPU = 64, 8
 
 
@@ -35,8 +41,7 @@ def tiled(backend, antialias=False, kind=()):
     """Whether warp_image runs in tiles on ``backend``: CPUs (vector lanes),
     not antialiased, no Newton iteration in the map, tiles within the
     device's group size."""
-    return (backend.lanes > 1 and not antialias and not has_newton(kind)
-            and TILE_X_CPU * TILE_ROWS_CPU <= backend.device.max_work_group_size)
+    return backend.lanes > 1 and not antialias and not has_newton(kind) and usable(backend, tile_for(backend))
 
 
 def tiled_program(backend, dtype, channels, order, mode, width, antialias, kind):
@@ -46,7 +51,8 @@ def tiled_program(backend, dtype, channels, order, mode, width, antialias, kind)
     if not tiled(backend, antialias, kind):
         return name, options, (local_x, 1)
     options = tuple(o for o in options if not o.startswith("-DFW_LOCAL_X="))
-    return name, (*options, f"-DFW_LOCAL_X={TILE_X_CPU}", f"-DFW_LOCAL_Y={TILE_ROWS_CPU}"), (TILE_X_CPU, TILE_ROWS_CPU)
+    x, y = tile_for(backend)
+    return name, (*options, f"-DFW_LOCAL_X={x}", f"-DFW_LOCAL_Y={y}"), (x, y)
 
 
 def global_size(local, output_shape):

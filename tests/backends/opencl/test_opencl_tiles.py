@@ -28,6 +28,7 @@ from support.kernel_cases import assert_images_agree, make_image, region_map, tp
 
 import fpiwarp
 from fpiwarp import FPI, RLinear
+from fpiwarp.backends.opencl.tuning import CANDIDATES
 
 MODES = ["constant", "edge", "reflect", "wrap"]
 
@@ -112,8 +113,10 @@ def test_tiles_only_on_cpus_without_antialiasing_or_newton(opencl_backend):
     name, options, local = opencl_tiles.tiled_program(be, np.uint8, 3, 1, "edge", 1000, False, fpi_kind)
     assert name == "warp_image" and sum(o.startswith("-DFW_LOCAL_X=") for o in options) == 1
     if be.lanes > 1:
-        assert local == (opencl_tiles.TILE_X_CPU, opencl_tiles.TILE_ROWS_CPU)
-        assert f"-DFW_LOCAL_Y={opencl_tiles.TILE_ROWS_CPU}" in options
+        from fpiwarp.backends.opencl.tuning import tile_for
+
+        assert local == tile_for(be)
+        assert f"-DFW_LOCAL_Y={local[1]}" in options
     assert opencl_tiles.global_size((64, 8), (17, 130)) == (192, 24)
 
 
@@ -129,6 +132,8 @@ def test_tiles_and_the_interior_path_give_the_one_row_general_output_bit_for_bit
         np.testing.assert_array_equal(tiled, general)
         wide = run_kernel(image, transform, shape, order, mode, cval, tile=(128, 4))
         np.testing.assert_array_equal(wide, general)
+        for tile in CANDIDATES[1:3]:  # the tuner's other choices (tall tiles)
+            np.testing.assert_array_equal(run_kernel(image, transform, shape, order, mode, cval, tile=tile), general)
     got = fpiwarp.warp_image(image, transform, shape, order=order, mode=mode, cval=cval, backend="opencl")
     np.testing.assert_array_equal(got, general)
     want = fpiwarp.warp_image(image, transform, shape, order=order, mode=mode, cval=cval, backend="numpy")
@@ -247,3 +252,34 @@ def test_sources_read_in_place_are_not_read_past_their_last_byte(opencl_backend,
         image[...] = make_image((h, w, channels), dtype, 3)
         for transform in (maps(w, h)["fpi_strong"], maps(w, h)["shift"], RLinear(1, 0, complex(0.5, 0.5))):
             assert_in_place_warp_is_the_uploaded_one(image, transform, mode)
+
+
+def test_the_tile_is_measured_once_per_device_and_kept(opencl_backend, monkeypatch, tmp_path):
+    from fpiwarp.backends.opencl import tuning
+
+    monkeypatch.setenv("FPIWARP_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv(tuning.ENV_TILE, raising=False)
+    be = backend()
+    monkeypatch.setattr(be, "_tile", None)
+    if be.lanes == 1:
+        assert tuning.tune(be)["tile"] is None
+        return
+    assert not tuning.tuned(be) and tuning.tile_for(be) == tuning.DEFAULT_TILE
+    monkeypatch.setattr(tuning, "TUNING_SHAPE", (96, 128, 3))
+    result = tuning.tune(be, candidates=((64, 8), (16, 16), (4096, 4096)))  # the last does not fit a group
+    assert result["tile"] in ((64, 8), (16, 16)) and set(result["seconds"]) == {"64x8", "16x16"}
+    assert tuning.tuned(be) and tuning.tile_for(be) == result["tile"]
+    monkeypatch.setattr(be, "_tile", None)  # a new process: read back from the disk
+    assert tuning.tile_for(be) == result["tile"] and be.tune() is None
+    monkeypatch.setattr(be, "_tile", None)
+    monkeypatch.setenv(tuning.ENV_TILE, "32,16")
+    assert tuning.tile_for(be) == (32, 16)
+    img = make_image((40, 70, 3), np.uint8, 5)
+    f = maps(70, 40)["fpi_strong"]
+    assert_images_agree(fpiwarp.warp_image(img, f, backend="opencl"), fpiwarp.warp_image(img, f, backend="numpy"),
+                        np.uint8)
+    monkeypatch.setattr(be, "_tile", None)
+    monkeypatch.setenv(tuning.ENV_TILE, "abc")
+    with pytest.raises(fpiwarp.ArgumentError, match="FPIWARP_OPENCL_TILE must be X,Y"):
+        tuning.tile_for(be)
+    monkeypatch.setattr(be, "_tile", None)
