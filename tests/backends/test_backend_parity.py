@@ -145,8 +145,13 @@ def test_warp_image_of_tps_regions_and_compounds(any_backend, name, order):
               "constrained": lambda: _constrained_maps()["constrained"], "local": lambda: _constrained_maps()["local"]}
     transform = makers[name]()
     img = make_image((48, 64, 3), np.uint8, seed=5)
+    # A local deformation's device inverse (float32 Newton, stopped at 5e-5 of
+    # the region's scale) is ~1e-2 px from the host's since the spline follows
+    # the constrained lines over the whole picture: on this noise image a
+    # cubic sample then moves by up to 2 levels.
+    levels = 2.0 if name == "local" else 1.0
     for mode in MODES:
-        compare_warp(get_backend(any_backend), img, transform, (48, 64), order, mode, [10, 20, 30])
+        compare_warp(get_backend(any_backend), img, transform, (48, 64), order, mode, [10, 20, 30], levels=levels)
 
 
 def test_local_deformation_warp_and_inverse_points(any_backend):
