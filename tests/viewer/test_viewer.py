@@ -229,7 +229,9 @@ def test_fpi_heat_map_is_constant_and_local_deformation_heat_map_follows_the_dil
     lo, hi = np.nanmin(near, 0)[sel], np.nanmax(near, 0)[sel]
     ts = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, 33)
     err = np.abs(255 * jet(ts / 0.25) - frame[sel][:, None, :]).max(-1).min(-1)
-    assert err.max() <= 16, np.percentile(err, [50, 99, 100])  # 16 levels: 0.004 of dilation
+    # 20 levels: 0.005 of dilation (the continuous construction's spline bends across the whole band,
+    # so the fragments' 2x2 differences stray a little more than they did near the region alone)
+    assert err.max() <= 20, np.percentile(err, [50, 99, 100])
     assert dil[inside].max() > 0.05 and dil[inside].min() < 1e-6  # varies: the outer similarities have 0
     r.release()
 
