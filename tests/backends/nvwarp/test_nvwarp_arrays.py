@@ -171,7 +171,7 @@ def test_antialiased_warp_arrays(wp, dev, rng):
 def test_every_kind_of_map_on_warp_arrays(wp, dev, rng, name):
     """The device path hands the kernels the same block as the numpy path
     (its inverse computed once per call) for every kind of map."""
-    from kernel_cases import MAPS
+    from support.kernel_cases import MAPS
 
     transform = MAPS[name]()
     img = make_image(rng, (48, 64, 3), np.uint8)

@@ -119,7 +119,7 @@ def test_newton_not_converged_gives_nan(warp, rng):
 )
 def test_fpi_points_inside_the_quad_match_reference(src, dst, seed):
     """Random FPIs: points inside the (convex) source quad, far from the pole."""
-    from strategies import orient_like
+    from support.strategies import orient_like
 
     from fpiwarp.backends.nvwarp.backend import Backend, probe
 
@@ -174,22 +174,34 @@ def test_tiny_images_in_every_mode(warp, shape):
 
 
 def test_new_values_do_not_recompile(warp, rng):
-    from fpiwarp.kernels.nvwarp import map as warp_map
+    """Maps of any kind share the point kernel; maps of one kind share
+    the image kernels of each kind of sampling: new values make no kernel
+    and load no module."""
+    from fpiwarp.kernels.nvwarp import factory
 
-    module = warp_map.map_points_kernel.module
-    if not hasattr(module, "execs"):
+    points = factory.point_kernel()
+    if not hasattr(points.module, "execs"):
         pytest.skip("this Warp version does not expose module.execs")
-    img = make_image((16, 16, 3), np.uint8)
+
+    def quad(k):
+        return FPI([[0, 0], [15, 0], [15, 15], [0, 15]], [[k, 0], [15, k / 2], [16, 15 - k], [0, 14]])
+
     warp.map_points(sample_fpi(), frame_points(rng, 10))
-    warp.warp_image(img, sample_fpi(), (16, 16), order=1, mode="edge", cval=np.zeros(3))
-    loaded = dict(module.execs)
+    for order in ORDERS:
+        for dtype in DTYPES:
+            warp.warp_image(make_image((12, 9, 2), dtype), quad(0.5), (7, 11), order=order, mode="wrap",
+                            cval=np.zeros(2))
+    made = dict(factory._cache)
+    loaded = {key: dict(kernel.module.execs) for key, kernel in made.items()}
     for transform in (MAPS["mobius"](), tps_map(), MAPS["compound"]()):
         warp.map_points(transform, frame_points(rng, 10))
+    for k in (1.0, 2.5, -1.0):
         for order in ORDERS:
             for dtype in DTYPES:
                 img = make_image((12, 9, 2), dtype)
-                warp.warp_image(img, transform, (7, 11), order=order, mode="wrap", cval=np.zeros(2))
-    assert module.execs == loaded
+                warp.warp_image(img, quad(k), (7, 11), order=order, mode="wrap", cval=np.zeros(2))
+    assert factory._cache == made
+    assert {key: dict(kernel.module.execs) for key, kernel in made.items()} == loaded
 
 
 def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(warp, rng):
@@ -197,7 +209,7 @@ def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(warp, rng
     kernel itself, given such a block anyway, returns NaN ("outside"),
     never a silent Newton inverse."""
     import warp as wp
-    from fpiwarp.kernels.nvwarp import map as warp_map
+    from fpiwarp.kernels.nvwarp import factory
 
     from fpiwarp.block import ROW_HEADER
 
@@ -211,10 +223,11 @@ def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(warp, rng
 
     with pytest.raises(ValueError, match="unknown core 7"):
         warp.map_points(RawBlock(), pts)
-    blk = wp.array(block, dtype=wp.vec4, device=warp.device)
+    blk = wp.array(block[None], dtype=wp.vec4, device=warp.device)
+    which = wp.zeros(1, dtype=wp.int32, device=warp.device)
     src = wp.array(pts, dtype=wp.vec2d, device=warp.device)
     out = wp.zeros(len(pts), dtype=wp.vec2d, device=warp.device)
-    wp.launch(warp_map.map_points_kernel, dim=len(pts), inputs=[blk, src, out, 0], device=warp.device)
+    wp.launch(factory.point_kernel(), dim=len(pts), inputs=[blk, which, src, out, 0], device=warp.device)
     assert np.isnan(out.numpy()).all()
 
 
