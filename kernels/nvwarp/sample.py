@@ -103,11 +103,60 @@ def clip_coord(v: float):
 #
 # Channel loops run over range(4) with ``c < channels`` inside: Warp
 # unrolls a loop of constant length, and where ``channels`` is a constant
-# of the kernel the compiler drops the channels it does not have. Taps
-# whose whole footprint lies inside the image (the common case) take
-# their indices directly; the border rule (``border_index``, ``inside``)
-# only runs near the edges. Both give the same values, in the same
-# arithmetic.
+# of the kernel the compiler drops the channels it does not have. A tap
+# footprint inside the image (the common case) calls the taps' function
+# with its indices as they are and every tap inside (literal ``True``s, so
+# the compiler drops the border's selects and index checks there); near
+# the edges the border rule (``border_index``, ``inside``) gives the
+# indices and flags. Both read the same values in the same arithmetic.
+
+
+@wp.func
+def nearest_tap(img: wp.array3d(dtype=Any), r: int, q: int, ok: bool, cval: wp.vec4, channels: int):
+    """Order 0's one tap, pixel (r, q), for every channel (cval where not ``ok``)."""
+    v = wp.vec4(0.0)
+    for c in range(4):
+        if c < channels:
+            v[c] = tap(float(img[r, q, c]), cval[c], ok)
+    return v
+
+
+@wp.func
+def bilinear_taps(
+    img: wp.array3d(dtype=Any), r0: int, r1: int, c0: int, c1: int, ok00: bool, ok01: bool, ok10: bool,
+    ok11: bool, tx: float, ty: float, cval: wp.vec4, channels: int,
+):
+    """Order 1 over rows r0, r1 and columns c0, c1 (cval where a tap is not ``ok``)."""
+    v = wp.vec4(0.0)
+    for c in range(4):
+        if c < channels:
+            v00 = tap(float(img[r0, c0, c]), cval[c], ok00)
+            v01 = tap(float(img[r0, c1, c]), cval[c], ok01)
+            v10 = tap(float(img[r1, c0, c]), cval[c], ok10)
+            v11 = tap(float(img[r1, c1, c]), cval[c], ok11)
+            v[c] = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
+    return v
+
+
+@wp.func
+def cubic_taps(
+    img: wp.array3d(dtype=Any), rows: wp.vec4i, cols: wp.vec4i, all_in: bool, row_in: wp.vec4i, col_in: wp.vec4i,
+    wx: wp.vec4, wy: wp.vec4, cval: wp.vec4, channels: int,
+):
+    """Order 3 over 4 × 4 taps (cval where a tap's row or column is not
+    inside, unless ``all_in``)."""
+    v = wp.vec4(0.0)
+    for j in range(4):
+        row = rows[j]
+        acc = wp.vec4(0.0)
+        for i in range(4):
+            col = cols[i]
+            ok = all_in or (row_in[j] != 0 and col_in[i] != 0)
+            for c in range(4):
+                if c < channels:
+                    acc[c] = acc[c] + wx[i] * tap(float(img[row, col, c]), cval[c], ok)
+        v = v + wy[j] * acc
+    return v
 
 
 @wp.func
@@ -120,20 +169,13 @@ def sample(
     w = img.shape[1]
     sx = clip_coord(s[0])
     sy = clip_coord(s[1])
-    v = wp.vec4(0.0)
     if order == 0:
         ix = int(wp.floor(sx + 0.5))
         iy = int(wp.floor(sy + 0.5))
-        ok = True
-        if ix < 0 or ix >= w or iy < 0 or iy >= h:
-            ok = inside(ix, w, mode) and inside(iy, h, mode)
-            ix = border_index(ix, w, mode)
-            iy = border_index(iy, h, mode)
-        r = src0 + iy
-        for c in range(4):
-            if c < channels:
-                v[c] = tap(float(img[r, ix, c]), cval[c], ok)
-        return v
+        if ix >= 0 and ix < w and iy >= 0 and iy < h:
+            return nearest_tap(img, src0 + iy, ix, True, cval, channels)
+        ok = inside(ix, w, mode) and inside(iy, h, mode)
+        return nearest_tap(img, src0 + border_index(iy, h, mode), border_index(ix, w, mode), ok, cval, channels)
     fx = wp.floor(sx)
     fy = wp.floor(sy)
     tx = sx - fx
@@ -141,58 +183,34 @@ def sample(
     if order == 1:
         x0 = int(fx)
         y0 = int(fy)
-        c0 = x0
-        c1 = x0 + 1
-        r0 = y0
-        r1 = y0 + 1
-        ok00 = True
-        ok01 = True
-        ok10 = True
-        ok11 = True
-        if x0 < 0 or x0 + 1 >= w or y0 < 0 or y0 + 1 >= h:
-            c0 = border_index(x0, w, mode)
-            c1 = border_index(x0 + 1, w, mode)
-            r0 = border_index(y0, h, mode)
-            r1 = border_index(y0 + 1, h, mode)
-            ok00 = inside(y0, h, mode) and inside(x0, w, mode)
-            ok01 = inside(y0, h, mode) and inside(x0 + 1, w, mode)
-            ok10 = inside(y0 + 1, h, mode) and inside(x0, w, mode)
-            ok11 = inside(y0 + 1, h, mode) and inside(x0 + 1, w, mode)
-        r0 = src0 + r0
-        r1 = src0 + r1
-        for c in range(4):
-            if c < channels:
-                v00 = tap(float(img[r0, c0, c]), cval[c], ok00)
-                v01 = tap(float(img[r0, c1, c]), cval[c], ok01)
-                v10 = tap(float(img[r1, c0, c]), cval[c], ok10)
-                v11 = tap(float(img[r1, c1, c]), cval[c], ok11)
-                v[c] = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
-        return v
+        if x0 >= 0 and x0 + 1 < w and y0 >= 0 and y0 + 1 < h:
+            return bilinear_taps(img, src0 + y0, src0 + y0 + 1, x0, x0 + 1, True, True, True, True, tx, ty, cval,
+                                 channels)
+        in_x0 = inside(x0, w, mode)  # all True but in constant mode
+        in_x1 = inside(x0 + 1, w, mode)
+        in_y0 = inside(y0, h, mode)
+        in_y1 = inside(y0 + 1, h, mode)
+        return bilinear_taps(img, src0 + border_index(y0, h, mode), src0 + border_index(y0 + 1, h, mode),
+                             border_index(x0, w, mode), border_index(x0 + 1, w, mode), in_y0 and in_x0,
+                             in_y0 and in_x1, in_y1 and in_x0, in_y1 and in_x1, tx, ty, cval, channels)
     wx = cubic_weights(tx)
     wy = cubic_weights(ty)
     x0 = int(fx) - 1
     y0 = int(fy) - 1
-    cols = wp.vec4i(x0, x0 + 1, x0 + 2, x0 + 3)
-    rows = wp.vec4i(y0, y0 + 1, y0 + 2, y0 + 3)
-    col_in = wp.vec4i(1, 1, 1, 1)
-    row_in = wp.vec4i(1, 1, 1, 1)
-    if x0 < 0 or x0 + 3 >= w or y0 < 0 or y0 + 3 >= h:
-        for i in range(4):
-            col_in[i] = int(inside(x0 + i, w, mode))
-            row_in[i] = int(inside(y0 + i, h, mode))
-            cols[i] = border_index(x0 + i, w, mode)
-            rows[i] = border_index(y0 + i, h, mode)
-    for j in range(4):
-        row = src0 + rows[j]
-        acc = wp.vec4(0.0)
-        for i in range(4):
-            col = cols[i]
-            ok = row_in[j] != 0 and col_in[i] != 0
-            for c in range(4):
-                if c < channels:
-                    acc[c] = acc[c] + wx[i] * tap(float(img[row, col, c]), cval[c], ok)
-        v = v + wy[j] * acc
-    return v
+    if x0 >= 0 and x0 + 3 < w and y0 >= 0 and y0 + 3 < h:
+        rows = wp.vec4i(src0 + y0, src0 + y0 + 1, src0 + y0 + 2, src0 + y0 + 3)
+        ones = wp.vec4i(1, 1, 1, 1)
+        return cubic_taps(img, rows, wp.vec4i(x0, x0 + 1, x0 + 2, x0 + 3), True, ones, ones, wx, wy, cval, channels)
+    cols = wp.vec4i(0)
+    rows = wp.vec4i(0)
+    col_in = wp.vec4i(0)
+    row_in = wp.vec4i(0)
+    for i in range(4):
+        cols[i] = border_index(x0 + i, w, mode)
+        rows[i] = src0 + border_index(y0 + i, h, mode)
+        col_in[i] = int(inside(x0 + i, w, mode))
+        row_in[i] = int(inside(y0 + i, h, mode))
+    return cubic_taps(img, rows, cols, False, row_in, col_in, wx, wy, cval, channels)
 
 
 # --- antialiasing: the footprint's sub-samples ------------------------------------
