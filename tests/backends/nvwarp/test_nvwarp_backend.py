@@ -371,10 +371,14 @@ def test_taps_at_the_edges_take_the_border_rule(warp, order, mode):
     """Translations by fractions of a pixel put source positions on, just
     inside and just beyond every edge: the direct path ends exactly where
     the border rule starts (float32 images, within 1e-5 of the float64
-    reference: the sampling's float32 rounding)."""
+    reference: the sampling's float32 rounding). Order 0 skips the shifts
+    by half a pixel, where floor(x + 0.5) is a tie that float32 and float64
+    positions may break either way."""
     img = make_image((9, 12, 1), np.float32, seed=5)
     corners = np.array([[0, 0], [11, 0], [11, 8], [0, 8]], dtype=np.float64)
     for shift in (-1.5, -0.75, -0.25, 0.25, 0.5, 1.25):
+        if order == 0 and shift % 1 == 0.5:
+            continue
         transform = FPI(corners, corners + [shift, -shift])
         want, cv = reference(img, transform, (9, 12), order, mode, 0.25)
         got = warp.warp_image(img, transform, (9, 12), order=order, mode=mode, cval=cv)
