@@ -201,7 +201,9 @@ class Backend:
         CPU threads for large calls on the CPU device; default from
         ``FPIWARP_WARP_THREADS``, else the CPUs this process may use.
 
-    The kernels are loaded (compiled, or read from Warp's disk cache) here.
+    Each kernel is loaded (compiled, or read from Warp's disk cache) on its
+    first use on this device, with a one-line notice when it compiles
+    (:func:`load_kernel`).
     """
 
     name = "warp"
@@ -214,8 +216,7 @@ class Backend:
         from fpiwarp.kernels.nvwarp import factory
 
         self.kernels = factory
-        self._loaded = set()  # keys of the kernels loaded on this device
-        self._points = self.point_kernel()
+        self._loaded = set()  # keys of the kernels loaded on this device (each on first use)
         self._lock = threading.Lock()
         self._pool = ThreadPoolExecutor(self.threads, "fpiwarp-warp") if self.threads > 1 else None
         if self._pool is not None:  # its idle threads end with the backend object
@@ -350,7 +351,7 @@ class Backend:
                 out = wp.array(result, dtype=wp.vec2d, device="cpu", copy=False)
             else:
                 out = self._buffer("mapped", (n,), wp.vec2d)
-            self._launch(self._points, n, None, [blk, self.first, src, out])
+            self._launch(self.point_kernel(), n, None, [blk, self.first, src, out])
             if not self._on_cpu:
                 result = out.numpy()
         return result.reshape(shape)
@@ -385,7 +386,7 @@ class Backend:
         with self._lock:
             blk = self._upload_block(transform)
             if points.shape[0]:
-                self._launch(self._points, points.shape[0], None, [blk, self.first, points, out])
+                self._launch(self.point_kernel(), points.shape[0], None, [blk, self.first, points, out])
         return out
 
     def bind(self, transform):
