@@ -111,15 +111,16 @@ def test_warp_kind_kernels_match_the_reference(warp_backend, order, mode):
 
 
 def test_warp_kind_kernels_are_made_once_per_kind(warp_backend):
-    from fpiwarp.kernels.nvwarp import kinds as warp_kinds
+    from fpiwarp.kernels.nvwarp import factory
 
     from fpiwarp.block import describe
 
-    key = warp_kinds.kind_key(describe(fpi(0.0).params()))
-    assert key == warp_kinds.kind_key(describe(fpi(5.0).params())) == ((0, 0),)
-    kernel = warp_kinds.image_kernel(key, 1, 3, 0, np.uint8)
-    assert warp_kinds.image_kernel(key, 1, 3, 0, np.dtype(np.uint8)) is kernel
-    assert warp_kinds.image_kernel(key, 1, 3, 1, np.uint8) is not kernel
+    key = factory.kind_key(describe(fpi(0.0).params()))
+    assert key == factory.kind_key(describe(fpi(5.0).params())) == ((0, 0),)
+    kernel = factory.image_kernel(factory.image_spec(key, 1, 0, 3, np.uint8))
+    assert factory.image_kernel(factory.image_spec(key, 1, 0, 3, np.dtype(np.uint8))) is kernel
+    assert factory.image_kernel(factory.image_spec(key, 1, 1, 3, np.uint8)) is not kernel
+    assert factory.image_kernel(factory.image_spec(key, 1, 0, 3, np.uint8, rows=True)) is not kernel
 
 
 @pytest.mark.parametrize("width", [257, 1000, 1025, 1920])

@@ -6,7 +6,7 @@ sampling rules (:mod:`fpiwarp.block.sampling_rules`). Each language gets
 them from here: OpenCL as a ``#define FW_<NAME>`` preamble that the host
 prepends to the program source (:func:`opencl_preamble`), GLSL as
 ``FPW_<NAME>`` defines (:func:`glsl_defines`), Warp as ``wp.constant``s
-bound in :mod:`fpiwarp.kernels.nvwarp.map` to these same values. No kernel
+bound in :mod:`fpiwarp.kernels.nvwarp.contract` to these same values. No kernel
 source writes one of these numbers itself (a test checks it).
 """
 

@@ -121,26 +121,22 @@ def test_warp_stacks_take_one_launch_per_kind(wp, dev, rng, monkeypatch, first):
     """Four maps of three kinds: three launches, contiguous stacks by row
     offsets, channels-first ones by the strided kernel (on the CPU: their
     thread-per-row variants)."""
-    from fpiwarp.kernels.nvwarp import kinds as warp_kinds
-
     from fpiwarp.backends.nvwarp import batch as warp_batches
 
     stack = make_image(rng, (4, 12, 15, 3), np.uint8)
     maps = [make_map(kind, k, 15, 12) for k, kind in enumerate(MAPS4)]
     expected = loop(stack, maps, "warp", {"order": 1})
-    runner = get_backend("warp").batches()
+    be = get_backend("warp")
+    runner = be.batches()
     launches, real = [], runner.launch
     monkeypatch.setattr(runner, "launch", lambda kernel, *args: launches.append(kernel) or real(kernel, *args))
     arr = wp.array(channels_first(stack) if first else stack, device=dev)
     got = fpiwarp.warp_batch(arr, maps, channels="first" if first else "last")
     np.testing.assert_array_equal(as_last(got.numpy(), first), expected)
     keys = [key for key, _, _ in warp_batches.kind_groups([m.inverse for m in maps], 4)]
-    if get_backend("warp").device.is_cpu:  # a thread per row there
-        made = [warp_kinds.row_batch_kernel(key, 1, 3, 0, np.uint8, strided=first) for key in keys]
-    else:
-        made = [(warp_kinds.strided_batch_kernel if first else warp_kinds.batch_kernel)(key, 1, 3, 0, np.uint8)
-                for key in keys]
+    made = [be.kernels.image_kernel(be.image_spec(key, 1, 0, 3, np.uint8, strided=first)) for key in keys]
     assert launches == made and len(set(launches)) == 3
+    assert all(k.key.endswith("_rows") == be.device.is_cpu for k in made)  # a thread per row on the CPU
 
 
 def test_pyopencl_stacks_take_one_launch_per_kind(cla, rng, monkeypatch):

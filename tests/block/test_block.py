@@ -198,9 +198,9 @@ def test_no_kernel_source_hand_defines_a_contract_constant():
 
 
 def test_warp_kernels_bind_every_contract_number_from_the_table():
-    text = source("kernels", "nvwarp/map.py")
+    text = source("kernels", "nvwarp/contract.py")
     calls = re.findall(r"wp\.constant\(([^)]*)\)", text)
-    assert calls, "warp_map binds its constants with wp.constant"
+    assert calls, "the Warp kernels' contract module binds its constants with wp.constant"
     for arg in calls:
         assert re.fullmatch(r'CONTRACT\["(\w+)"\]', arg), f"wp.constant({arg}) is not taken from the contract"
         name = re.fullmatch(r'CONTRACT\["(\w+)"\]', arg)[1]
@@ -221,7 +221,7 @@ def test_opencl_sources_use_only_generated_contract_names():
 def test_every_core_has_its_own_branch_in_every_kernel():
     """No core is an implicit `else`: each kernel names every core of the
     contract and gives anything else NaN ("outside")."""
-    for kind, name, prefix in (("kernels", "opencl/fpiwarp_map.h", "FW_"), ("kernels", "nvwarp/map.py", ""),
+    for kind, name, prefix in (("kernels", "opencl/fpiwarp_map.h", "FW_"), ("kernels", "nvwarp/stage.py", ""),
                                ("glsl", "include/map.glsl", "FPW_"), ("glsl", "include/antialias.glsl", "FPW_")):
         text = source(kind, name)
         for core in ("CORE_AFFINE", "CORE_TPS", "CORE_TPS_INVERSE", "CORE_TPS_PAIRS", "CORE_TPS_PAIRS_INVERSE"):

@@ -1,9 +1,10 @@
 """The ``"warp"`` backend: NVIDIA Warp kernels on CUDA or Warp's CPU device.
 
 The map is packed once on the host (:meth:`fpiwarp.Transform.params`) and
-uploaded as an array of ``vec4`` rows; the kernels in
-:mod:`fpiwarp.kernels.nvwarp.map` are compiled once per device and cached on
-disk by Warp (its default cache directory, or ``WARP_CACHE_PATH``).
+uploaded as an array of ``vec4`` rows; the kernels, made by
+:mod:`fpiwarp.kernels.nvwarp.factory` for each kind of map and of sampling,
+are compiled once per device and cached on disk by Warp (its default cache
+directory, or ``WARP_CACHE_PATH``).
 
 Device choice: the ``device`` argument of :class:`Backend`, else the
 environment variable ``FPIWARP_WARP_DEVICE`` (``"cpu"``, ``"cuda:0"``, ...),
@@ -11,7 +12,8 @@ else ``cuda:0`` when CUDA is available and ``cpu`` otherwise.
 
 Warp's CPU device runs each launch on one thread, so on the CPU a large
 call is split into bands of rows (ranges of points) launched from a small
-thread pool; Warp releases the GIL while a CPU kernel runs. The number of
+thread pool, and its image kernels run a thread per output row (on CUDA a
+thread per pixel); Warp releases the GIL while a CPU kernel runs. The number of
 threads comes from the ``threads`` argument, else ``FPIWARP_WARP_THREADS``,
 else the CPUs this process may use.
 
@@ -23,9 +25,11 @@ keep the same shape.
 import contextlib
 import ctypes
 import itertools
+import logging
 import operator
 import os
 import threading
+import time
 import weakref
 from concurrent.futures import ThreadPoolExecutor
 
@@ -43,8 +47,11 @@ THREADS_ENV = "FPIWARP_WARP_THREADS"
 #: Below this many work items a CPU call is one launch on the calling thread.
 MIN_ITEMS_PER_THREAD = 1 << 14
 
-_TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
 _init_lock = threading.Lock()
+_log = logging.getLogger("fpiwarp")
+#: A kernel whose load took longer than this, where Warp's cache could not be
+#: looked at beforehand, is reported after the fact.
+SLOW_LOAD_S = 2.0
 
 
 @contextlib.contextmanager
@@ -91,6 +98,44 @@ def warp_module():
     """Warp, imported and initialized quietly (once); for modules that
     hand this backend Warp arrays (:mod:`fpiwarp.arrays`)."""
     return _warp()
+
+
+def _launch_block_dim(device):
+    """The block dimension wp.launch loads a module with (1 on the CPU)."""
+    return 1 if device.is_cpu else 256
+
+
+def _will_compile(wp, module, device):
+    """True when loading ``module`` on ``device`` compiles it (no binary in
+    Warp's kernel cache), False when it is loaded or cached, None when this
+    Warp version does not say (its cache layout is Warp's own)."""
+    block_dim = _launch_block_dim(device)
+    try:
+        if module.execs.get((device.context, block_dim)) is not None:
+            return False
+        folder = os.path.join(wp.config.kernel_cache_dir, module.get_module_identifier(block_dim))
+        return not os.path.exists(os.path.join(folder, module._get_compile_output_name(device, block_dim=block_dim)))
+    except Exception:  # noqa: BLE001 - a private layout of Warp's: unknown, said after the load instead
+        return None
+
+
+def load_kernel(wp, kernel, device):
+    """Load ``kernel`` on ``device`` (compiled, or read from Warp's disk
+    cache), saying so in one line of the "fpiwarp" logger when it really
+    compiles: Warp's first compile of a kernel takes seconds (10-20 s on a
+    small CPU) and must not land on a first call silently."""
+    compiling = _will_compile(wp, kernel.module, device)
+    name = kernel.key.rsplit(".", 1)[-1]
+    if compiling:
+        _log.warning("fpiwarp: compiling the Warp kernel %s for %s, once: Warp caches it on disk "
+                     "(%s), so later runs load it in milliseconds", name, device, wp.config.kernel_cache_dir)
+    start = time.perf_counter()
+    kernel.module.load(device, _launch_block_dim(device))
+    took = time.perf_counter() - start
+    if compiling is None and took > SLOW_LOAD_S:
+        _log.warning("fpiwarp: loading the Warp kernel %s for %s took %.1f s (compiled; Warp caches it on disk)",
+                     name, device, took)
+    return kernel
 
 
 def _device_name(wp, device=None):
@@ -156,7 +201,9 @@ class Backend:
         CPU threads for large calls on the CPU device; default from
         ``FPIWARP_WARP_THREADS``, else the CPUs this process may use.
 
-    The kernels are loaded (compiled, or read from Warp's disk cache) here.
+    Each kernel is loaded (compiled, or read from Warp's disk cache) on its
+    first use on this device, with a one-line notice when it compiles
+    (:func:`load_kernel`).
     """
 
     name = "warp"
@@ -166,21 +213,22 @@ class Backend:
         self.device = wp.get_device(_device_name(wp, device))
         self._on_cpu = self.device.is_cpu
         self.threads = _thread_count(threads) if self._on_cpu else 1
-        from fpiwarp.kernels.nvwarp import map as warp_map
+        from fpiwarp.kernels.nvwarp import factory
 
-        self._k = warp_map
-        wp.load_module(warp_map, device=self.device)
+        self.kernels = factory
+        self._loaded = set()  # keys of the kernels loaded on this device (each on first use)
         self._lock = threading.Lock()
         self._pool = ThreadPoolExecutor(self.threads, "fpiwarp-warp") if self.threads > 1 else None
         if self._pool is not None:  # its idle threads end with the backend object
             weakref.finalize(self, self._pool.shutdown, wait=False)
-        self._block = wp.zeros(MAX_ROWS, dtype=wp.vec4, device=self.device)
+        # the kernels read blocks (B, rows): one map is B = 1, read by image (point set) 0 through ``first``
+        self._block = wp.zeros((1, MAX_ROWS), dtype=wp.vec4, device=self.device)
         self._block_staging = self._block if self._on_cpu else wp.zeros_like(self._block, device="cpu", pinned=True)
-        self._block_host = self._block_staging.numpy()  # a (rows, 4) float32 view of host memory
+        self._block_host = self._block_staging.numpy()[0]  # a (rows, 4) float32 view of host memory
+        self.first = wp.zeros(1, dtype=wp.int32, device=self.device)
         self._buffers = {}
         self._jobs = JobCache()  # prepared jobs of plain warp_image calls
         self.block_kind = None  # what the kernels specialize on, of the block uploaded last
-        self._aa_loaded = False  # the antialiased kernels' module, loaded on first use
         self._batch_runner = None  # the batch kernels, loaded on first use
 
     def __repr__(self):
@@ -199,6 +247,41 @@ class Backend:
             return
         for future in [self._pool.submit(launch.launch) for launch in launches]:
             future.result()
+
+    def image_spec(self, kind, order, mode, channels, dtype, *, strided=False, antialias=False):
+        """The :class:`~fpiwarp.kernels.nvwarp.factory.ImageKernel` of this
+        device: a thread per row on the CPU, per pixel on CUDA."""
+        return self.kernels.image_spec(kind, order, mode, channels, dtype, strided=strided, rows=self._on_cpu,
+                                       antialias=antialias)
+
+    def image_kernel(self, kind, order, mode, channels, dtype, *, strided=False, antialias=False):
+        """The image kernel of :meth:`image_spec`, loaded on this device."""
+        return self._loaded_kernel(self.kernels.image_kernel(
+            self.image_spec(kind, order, mode, channels, dtype, strided=strided, antialias=antialias)))
+
+    def point_kernel(self, sets=False):
+        """The point kernel (``sets``: of (N, P) point sets), loaded on this device."""
+        return self._loaded_kernel(self.kernels.point_kernel(self.kernels.PointKernel(sets=sets)))
+
+    def _loaded_kernel(self, kernel):
+        if kernel.key not in self._loaded:
+            load_kernel(self._wp, kernel, self.device)
+            self._loaded.add(kernel.key)
+        return kernel
+
+    def launch_image(self, kernel, rows, cols, inputs, launch=None):
+        """Launch an image kernel of :meth:`image_spec` over ``rows`` output
+        rows of ``cols`` pixels (in bands of rows on the CPU) through
+        ``launch`` (default :meth:`_launch`)."""
+        launch = launch or self._launch
+        if self._on_cpu:
+            launch(kernel, rows, None, inputs, cols)
+        else:
+            launch(kernel, rows, cols, inputs)
+
+    def image_dims(self, rows, cols):
+        """The launch dimensions of an image kernel of :meth:`image_spec`."""
+        return rows if self._on_cpu else (rows, cols)
 
     def _launch(self, kernel, rows, cols, inputs, row_items=None):
         """Launch ``kernel`` over (rows, cols), or over rows when cols is None
@@ -230,7 +313,7 @@ class Backend:
         self._block_host[:rows] = block
         if not self._on_cpu:
             self._wp.copy(self._block, self._block_staging, count=rows)
-        self.block_kind = tuple((s.core, s.n_regions) for s in kind.stages)
+        self.block_kind = self.kernels.kind_key(kind)
         return self._block
 
     def _buffer(self, key, shape, dtype):
@@ -268,7 +351,7 @@ class Backend:
                 out = wp.array(result, dtype=wp.vec2d, device="cpu", copy=False)
             else:
                 out = self._buffer("mapped", (n,), wp.vec2d)
-            self._launch(self._k.map_points_kernel, n, None, [blk, src, out])
+            self._launch(self.point_kernel(), n, None, [blk, self.first, src, out])
             if not self._on_cpu:
                 result = out.numpy()
         return result.reshape(shape)
@@ -303,7 +386,7 @@ class Backend:
         with self._lock:
             blk = self._upload_block(transform)
             if points.shape[0]:
-                self._launch(self._k.map_points_kernel, points.shape[0], None, [blk, points, out])
+                self._launch(self.point_kernel(), points.shape[0], None, [blk, self.first, points, out])
         return out
 
     def bind(self, transform):
@@ -313,15 +396,12 @@ class Backend:
 
     def batches(self):
         """The :class:`~fpiwarp.backends.nvwarp.batch.BatchRunner` of this
-        backend; its kernels are loaded on first use."""
-        from fpiwarp.kernels.nvwarp import batch as warp_batch  # noqa: PLC0415 - compiled only when asked for
-
+        backend; its kernels are made on first use."""
         from .batch import BatchRunner  # noqa: PLC0415
 
         with self._lock:
             if self._batch_runner is None:
-                self._wp.load_module(warp_batch, device=self.device)
-                self._batch_runner = BatchRunner(self._wp, self.device, self._on_cpu, self._launch, warp_batch)
+                self._batch_runner = BatchRunner(self)
         return self._batch_runner
 
     def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):
@@ -354,15 +434,6 @@ class Backend:
         runner = self.batches()
         with self._lock:
             return runner.map_points_arrays(transforms, points, out)
-
-    def antialias_kernels(self):
-        """The module of antialiased kernels, loaded on first use."""
-        from fpiwarp.kernels.nvwarp import antialias as warp_antialias  # noqa: PLC0415 - compiled only when asked for
-
-        if not self._aa_loaded:
-            self._wp.load_module(warp_antialias, device=self.device)
-            self._aa_loaded = True
-        return warp_antialias
 
     def prepare_warp(self, image, output_shape, *, order, mode, cval, antialias=False, out=None):
         """A :class:`DeviceWarp`: ``image`` on the device (aliased on the
@@ -403,11 +474,10 @@ class DeviceWarp:
             self._result = None
             self._out = be._buffer("warped", (oh, ow, channels), scalar)
         self._kernel = None  # chosen by set_map, for the map's kind
-        self._tail = [wp.vec4(*cv.tolist())]
-        self._sampling = (int(order), channels, MODES.index(mode), dtype)
-        if antialias:  # one kernel for every order and map, which takes them as arguments
-            self._kernel = be.antialias_kernels().warp_antialias
-            self._tail = [int(order), MODES.index(mode), self._tail[0], _TOP[dtype]]
+        self._tail = [image.shape[0], oh, 0, int(order), MODES.index(mode), wp.vec4(*cv.tolist())]
+        self._sampling = (int(order), MODES.index(mode), channels, dtype)
+        if antialias:  # one kernel for every map, order and mode, which it reads at run time
+            self._kernel = be.image_kernel(None, None, None, None, dtype, antialias=True)
         self._antialias = antialias
         self._block = None
 
@@ -417,14 +487,13 @@ class DeviceWarp:
         be = self.backend
         self._block = be._upload_block(transform.inverse)
         if not self._antialias:
-            from fpiwarp.kernels.nvwarp import kinds as warp_kinds  # noqa: PLC0415 - imported with Warp
-
-            self._kernel = warp_kinds.image_kernel(be.block_kind, *self._sampling)
+            self._kernel = be.image_kernel(be.block_kind, *self._sampling)
 
     def launch(self):
         """Run the kernel over the output (on CUDA without waiting for it)."""
         oh, ow = self.output_shape
-        self.backend._launch(self._kernel, oh, ow, [self._block, self._src, self._out, *self._tail])
+        self.backend.launch_image(self._kernel, oh, ow, [self._block, self.backend.first, self._src, self._out,
+                                                         *self._tail])
 
     def finish(self):
         """Wait until the launched kernels are done."""

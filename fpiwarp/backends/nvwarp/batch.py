@@ -1,25 +1,26 @@
 """Batches on the ``"warp"`` backend: many images (point sets) per launch.
 
-Plain image batches run the kernels specialized per kind of map that
-single images run (:func:`fpiwarp.kernels.nvwarp.kinds.batch_kernel`, the
-same per-pixel function): the maps are grouped by kind of block (each
+Image batches run the image kernels that single images run (one image is
+a batch of one: :func:`fpiwarp.kernels.nvwarp.factory.image_kernel`, the
+same stage walk and sampler): the maps are grouped by kind of block (each
 stage's core and regions, as the opencl backend groups them) and each
 group is one launch over its images, reading block ``which[k]`` of the
 group's blocks stacked in one (B, rows, 4) array (rows: the longest
 block's; one map for all images is one block that every image reads).
 N maps of one kind are one launch; k kinds are k launches. Antialiased
-batches and point sets run the generic kernels of
-:mod:`fpiwarp.kernels.nvwarp.batch` (as single calls do), one launch for any
-mix of kinds. On the CPU device every launch is split, like one tall
-image, into one band of rows per thread of the backend's pool.
+batches and point sets run the kernels that read each stage's kind from
+the block (as single calls do), one launch for any mix of kinds. On the
+CPU device every launch is split, like one tall image, into one band of
+rows per thread of the backend's pool, and image kernels run a thread per
+output row.
 
 Device arrays: :meth:`BatchRunner.warp_arrays` and
 :meth:`BatchRunner.map_points_arrays` read and write Warp arrays of the
 backend's device in place, any strides (:mod:`fpiwarp.arrays` views
 torch, CuPy, JAX and DLPack stacks as such, channels-first ones as
 transposed views): contiguous stacks run the row-offset batch kernel,
-others :func:`fpiwarp.kernels.nvwarp.kinds.strided_batch_kernel` (the same
-per-pixel function on sub-array views). Nothing is chunked or copied.
+others the kernel of the same key with ``strided`` (the same stage walk
+and sampler on sub-array views). Nothing is chunked or copied.
 
 Host stacks: on the CPU the kernels read and write the caller's numpy
 arrays in place (aliased). On CUDA the stack goes in chunks of at most
@@ -43,9 +44,6 @@ PIPELINE_CHUNK_BYTES = 32 << 20
 #: The ways a host stack may reach a CUDA device (``transfer=``).
 TRANSFERS = ("serial", "pipelined")
 
-_TOP = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0, np.dtype(np.float32): 0.0}
-
-
 def stacked_blocks(transforms):
     """(N or 1, rows, 4) float32 blocks of ``transforms``, each padded with
     zero rows to the longest; a block no kernel knows raises ValueError."""
@@ -57,21 +55,18 @@ def stacked_blocks(transforms):
 def kind_groups(transforms, n):
     """The maps of a batch of ``n`` images grouped by kind of block: a list
     of (kind key (each stage's core and regions, as
-    :func:`fpiwarp.kernels.nvwarp.kinds.kind_key`), blocks (B, rows, 4)
+    :func:`fpiwarp.kernels.nvwarp.factory.kind_key`), blocks (B, rows, 4)
     float32 padded to the longest, images (K,) int32: the group's images,
     image ``images[k]`` warped by block k, or block 0 where B is 1). One
     map gives one group of all ``n`` images reading one block. A block no kernel knows raises
     ValueError (:func:`describe`) first. The blocks are packed together and
     each distinct kind described once (:class:`fpiwarp.block.many.BlockStack`)."""
+    from fpiwarp.kernels.nvwarp.factory import kind_key  # noqa: PLC0415 - Warp imported with the backend
+
     stack = BlockStack.of(transforms)
     if len(stack) == 1:
-        return [(_kind_key(describe(stack.array[0])), stack.array, np.arange(n, dtype=np.int32))]
-    return [(key, stack.take(idx)[1], idx) for key, idx in stack.groups(_kind_key)]
-
-
-def _kind_key(kind):
-    """What a per-kind kernel is specialized on: each stage's core and region count."""
-    return tuple((s.core, s.n_regions) for s in kind.stages)
+        return [(kind_key(describe(stack.array[0])), stack.array, np.arange(n, dtype=np.int32))]
+    return [(key, stack.take(idx)[1], idx) for key, idx in stack.groups(kind_key)]
 
 
 def _ranges(n, item_bytes):
@@ -95,12 +90,16 @@ def row_view(wp, arr):
 
 
 class BatchRunner:
-    """Batches on one Warp backend: ``wp`` (the module), ``device``,
-    ``on_cpu`` and ``launch(kernel, rows, cols, inputs)`` (the backend's
-    banded launcher) come from the backend."""
+    """Batches on one Warp backend (its module ``wp``, device, kernels and
+    banded launchers)."""
 
-    def __init__(self, wp, device, on_cpu, launch, kernels):
-        self.wp, self.device, self.on_cpu, self.launch, self.k = wp, device, on_cpu, launch, kernels
+    def __init__(self, backend, on_cpu=None):
+        self.backend = backend
+        self.wp, self.device = backend._wp, backend.device
+        # whether host stacks are aliased (Warp's CPU device) or copied in chunks (CUDA; ``on_cpu=False``
+        # runs that path on the CPU device, for tests)
+        self.on_cpu = backend._on_cpu if on_cpu is None else on_cpu
+        self.launch = backend._launch  # (kernel, rows, cols, inputs, row_items): the backend's banded launcher
         self.pipelined = None  # the pipelined transfers' streams and buffers, made on first use
 
     def _array(self, data, dtype):
@@ -145,34 +144,28 @@ class BatchRunner:
         ``dst``, both on this device with any strides, read and written in
         place: one launch per kind of map (one for antialiased batches).
         Returns ``dst`` (on CUDA without waiting for the kernels)."""
-        wp = self.wp
+        wp, be = self.wp, self.backend
         n, h, _, c = src.shape
         oh, ow = dst.shape[1], dst.shape[2]
         dtype = np.dtype(wp.dtype_to_numpy(src.dtype))
         cv = np.zeros(4, dtype=np.float32)
         cv[:c] = cval
-        cval4 = wp.vec4(*cv.tolist())
-        if antialias:  # the generic kernel, as for one image
-            blocks = stacked_blocks(inverses(transforms))
-            tail = [int(order), MODES.index(mode), cval4, _TOP[dtype]]
-            self.launch(self.k.batch_antialias, n * oh, ow,
-                        [self._array(blocks, wp.vec4), self._which(blocks, 0, n), src, dst, *tail])
-            return dst
-        from fpiwarp.kernels.nvwarp import kinds as warp_kinds  # noqa: PLC0415 - Warp imported with the backend
-
         rows = (row_view(wp, src), row_view(wp, dst))  # images as row offsets, where the strides allow
         strided = None in rows
-        for key, blocks, images in kind_groups(inverses(transforms), n):
-            step = int(len(blocks) > 1)
-            head = [self._array(blocks, wp.vec4), self._array(images, wp.int32)]
-            inputs = [*head, src, dst, step, cval4] if strided else [*head, *rows, h, oh, step, cval4]
-            sampling = (key, order, c, MODES.index(mode), dtype)
-            if self.on_cpu:  # a thread per row (see warp_kinds.row_batch_kernel)
-                self.launch(warp_kinds.row_batch_kernel(*sampling, strided=strided), len(images) * oh, None, inputs,
-                            ow)
-            else:
-                kernel = (warp_kinds.strided_batch_kernel if strided else warp_kinds.batch_kernel)(*sampling)
-                self.launch(kernel, len(images) * oh, ow, inputs)
+        arrays = [src, dst] if strided else list(rows)
+        tail = [h, oh]
+        sampling = (int(order), MODES.index(mode))
+        if antialias:  # one launch for every kind, as for one image
+            blocks = stacked_blocks(inverses(transforms))
+            groups = [(None, blocks, np.arange(n, dtype=np.int32))]
+        else:
+            groups = kind_groups(inverses(transforms), n)
+        for key, blocks, images in groups:
+            spec = (None, None, None) if antialias else (key, *sampling)
+            kernel = be.image_kernel(*spec, None if antialias else c, dtype, strided=strided, antialias=antialias)
+            inputs = [self._array(blocks, wp.vec4), self._array(images, wp.int32), *arrays, *tail,
+                      int(len(blocks) > 1), *sampling, wp.vec4(*cv.tolist())]
+            be.launch_image(kernel, len(images) * oh, ow, inputs, self.launch)
         return dst
 
     def map_points_batch(self, transforms, points):
@@ -199,9 +192,11 @@ class BatchRunner:
         one map), in one launch; returns ``out`` (on CUDA without waiting)."""
         n, p = points.shape
         if n and p:
+            be = self.backend
             blocks = stacked_blocks(transforms)
-            self.launch(self.k.batch_map_points, n * p, None,
-                        [self._array(blocks, self.wp.vec4), self._which(blocks, 0, n), points, out])
+            kernel = be.point_kernel(sets=True)
+            inputs = [self._array(blocks, self.wp.vec4), self._which(blocks, 0, n), points, out]
+            self.launch(kernel, n * p, None, inputs)
         return out
 
 

@@ -2,7 +2,7 @@
 
 A :class:`WarpJob` holds what does not change between calls of one kind
 (image shape and dtype, output shape, order, mode, cval and the map's
-kind): the kernel specialized for it (:mod:`fpiwarp.kernels.nvwarp.kinds`),
+kind): the kernel specialized for it (:mod:`fpiwarp.kernels.nvwarp.factory`),
 the bands of rows a CPU call is split into, and the recorded launches
 (``wp.launch(..., record_cmd=True)``), so a call only points the launches at
 this image and output and replays them. :class:`BoundMap` is the
@@ -48,8 +48,6 @@ class WarpJob:
     """
 
     def __init__(self, backend, block, image, output_shape, order, mode, cval, kind_key):
-        from fpiwarp.kernels.nvwarp import kinds as warp_kinds  # noqa: PLC0415 - Warp imported with the backend
-
         be = self.backend = backend
         wp = be._wp
         self.output_shape = oh, ow = tuple(output_shape)
@@ -58,13 +56,15 @@ class WarpJob:
         self._scalar = wp.dtype_from_numpy(image.dtype)
         cv = np.zeros(4, dtype=np.float32)
         cv[: self.channels] = cval
-        kernel = warp_kinds.image_kernel(kind_key, order, self.channels, MODES.index(mode), image.dtype)
+        mode = MODES.index(mode)
+        kernel = be.image_kernel(kind_key, order, mode, self.channels, image.dtype)
         bands = be.band_count(oh, ow)
         cuts = [oh * b // bands for b in range(bands + 1)]
         src = be._to_device("image", image, self._scalar)
         out = self._output()
+        tail = [image.shape[0], oh, 0, int(order), mode, wp.vec4(*cv.tolist())]
         self._launches = [
-            wp.launch(kernel, dim=(r1 - r0, ow), inputs=[block, src, out[1], wp.vec4(*cv.tolist()), r0],
+            wp.launch(kernel, dim=be.image_dims(r1 - r0, ow), inputs=[block, be.first, src, out[1], *tail, r0],
                       device=be.device, record_cmd=True)
             for r0, r1 in itertools.pairwise(cuts)
         ]
@@ -84,8 +84,8 @@ class WarpJob:
         src = be._to_device("image", image, self._scalar)
         result, out = self._output()
         for launch in self._launches:
-            launch.set_param_at_index(1, src)
-            launch.set_param_at_index(2, out)
+            launch.set_param_at_index(2, src)
+            launch.set_param_at_index(3, out)
         be.run_launches(self._launches)
         return result if result is not None else out.numpy()
 
@@ -98,8 +98,8 @@ class BoundMap:
         wp = backend._wp
         self.backend, self.transform = backend, transform
         block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
-        self.kind_key = tuple((s.core, s.n_regions) for s in describe(block).stages)
-        self._block = wp.array(block, dtype=wp.vec4, device=backend.device)
+        self.kind_key = backend.kernels.kind_key(describe(block))
+        self._block = wp.array(block[None], dtype=wp.vec4, device=backend.device)  # blocks (1, rows)
         self._jobs = JobCache()
 
     def warp_image(self, image, output_shape, *, order, mode, cval, antialias=False):

@@ -22,6 +22,7 @@ from support.kernel_cases import (
     frame_points,
     make_image,
     newton_atol,
+    reference,
     sample_fpi,
     tps_inverse_stage,
     tps_map,
@@ -174,22 +175,34 @@ def test_tiny_images_in_every_mode(warp, shape):
 
 
 def test_new_values_do_not_recompile(warp, rng):
-    from fpiwarp.kernels.nvwarp import map as warp_map
+    """Maps of any kind share the point kernel; maps of one kind share
+    the image kernels of each kind of sampling: new values make no kernel
+    and load no module."""
+    from fpiwarp.kernels.nvwarp import factory
 
-    module = warp_map.map_points_kernel.module
-    if not hasattr(module, "execs"):
+    points = factory.point_kernel()
+    if not hasattr(points.module, "execs"):
         pytest.skip("this Warp version does not expose module.execs")
-    img = make_image((16, 16, 3), np.uint8)
+
+    def quad(k):
+        return FPI([[0, 0], [15, 0], [15, 15], [0, 15]], [[k, 0], [15, k / 2], [16, 15 - k], [0, 14]])
+
     warp.map_points(sample_fpi(), frame_points(rng, 10))
-    warp.warp_image(img, sample_fpi(), (16, 16), order=1, mode="edge", cval=np.zeros(3))
-    loaded = dict(module.execs)
+    for order in ORDERS:
+        for dtype in DTYPES:
+            warp.warp_image(make_image((12, 9, 2), dtype), quad(0.5), (7, 11), order=order, mode="wrap",
+                            cval=np.zeros(2))
+    made = dict(factory._cache)
+    loaded = {key: dict(kernel.module.execs) for key, kernel in made.items()}
     for transform in (MAPS["mobius"](), tps_map(), MAPS["compound"]()):
         warp.map_points(transform, frame_points(rng, 10))
+    for k in (1.0, 2.5, -1.0):
         for order in ORDERS:
             for dtype in DTYPES:
                 img = make_image((12, 9, 2), dtype)
-                warp.warp_image(img, transform, (7, 11), order=order, mode="wrap", cval=np.zeros(2))
-    assert module.execs == loaded
+                warp.warp_image(img, quad(k), (7, 11), order=order, mode="wrap", cval=np.zeros(2))
+    assert factory._cache == made
+    assert {key: dict(kernel.module.execs) for key, kernel in made.items()} == loaded
 
 
 def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(warp, rng):
@@ -197,7 +210,7 @@ def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(warp, rng
     kernel itself, given such a block anyway, returns NaN ("outside"),
     never a silent Newton inverse."""
     import warp as wp
-    from fpiwarp.kernels.nvwarp import map as warp_map
+    from fpiwarp.kernels.nvwarp import factory
 
     from fpiwarp.block import ROW_HEADER
 
@@ -211,10 +224,11 @@ def test_unknown_core_is_refused_by_the_host_and_outside_in_the_kernel(warp, rng
 
     with pytest.raises(ValueError, match="unknown core 7"):
         warp.map_points(RawBlock(), pts)
-    blk = wp.array(block, dtype=wp.vec4, device=warp.device)
+    blk = wp.array(block[None], dtype=wp.vec4, device=warp.device)
+    which = wp.zeros(1, dtype=wp.int32, device=warp.device)
     src = wp.array(pts, dtype=wp.vec2d, device=warp.device)
     out = wp.zeros(len(pts), dtype=wp.vec2d, device=warp.device)
-    wp.launch(warp_map.map_points_kernel, dim=len(pts), inputs=[blk, src, out, 0], device=warp.device)
+    wp.launch(factory.point_kernel(), dim=len(pts), inputs=[blk, which, src, out, 0], device=warp.device)
     assert np.isnan(out.numpy()).all()
 
 
@@ -291,3 +305,81 @@ def test_copy_path_reuses_buffers(warp_backend, rng):
     assert_close_relative(backend.map_points(transform, pts), transform(pts))
     backend.map_points(transform, pts[:20])  # a new shape: new buffers
     assert backend._buffers["points"].shape == (20,)
+
+
+# --- the CPU paths: a thread per row, taps inside the image ---------------------
+
+
+def _launch_both_layouts(warp, img, transform, shape, order, mode, cval, antialias=False):
+    """One image through the factory's kernel with a thread per row and
+    with a thread per pixel (the CUDA layout), on this backend's device."""
+    import warp as wp
+    from fpiwarp.kernels.nvwarp import factory
+
+    from fpiwarp.block import describe
+    from fpiwarp.block.sampling_rules import MODES
+
+    block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
+    kind = None if antialias else factory.kind_key(describe(block))
+    static = (None, None, None) if antialias else (order, MODES.index(mode), img.shape[2])
+    scalar = wp.dtype_from_numpy(img.dtype)
+    blk = wp.array(block[None], dtype=wp.vec4, device=warp.device)
+    first = wp.zeros(1, dtype=wp.int32, device=warp.device)
+    src = wp.array(img, dtype=scalar, device=warp.device)
+    cv = np.zeros(4, np.float32)
+    cv[: img.shape[2]] = cval
+    outs = []
+    for rows in (True, False):
+        spec = factory.image_spec(kind, *static, img.dtype, rows=rows, antialias=antialias)
+        out = wp.zeros((*shape, img.shape[2]), dtype=scalar, device=warp.device)
+        inputs = [blk, first, src, out, img.shape[0], shape[0], 0, order, MODES.index(mode), wp.vec4(*cv.tolist()), 0]
+        wp.launch(factory.image_kernel(spec), dim=shape[0] if rows else shape, inputs=inputs, device=warp.device)
+        outs.append(out.numpy())
+    return outs
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_row_and_pixel_kernels_give_the_same_bits_and_match_the_reference(warp, order, mode, dtype):
+    """The thread-per-row kernel (Warp's CPU device) and the thread-per-pixel
+    one (CUDA) are one kernel body: the same bits, every order, mode and
+    dtype, and within one level of the numpy reference (PIXEL_FRACTION of
+    the pixels). The map moves the quad past every edge, so taps run both
+    inside the image (direct indices) and across its border (border rule)."""
+    transform = FPI([[0, 0], [20, 0], [20, 16], [0, 16]], [[-3, 2], [24, -2], [22, 19], [1, 14]])
+    img = make_image((17, 21, 3), dtype, seed=order)
+    by_row, by_pixel = _launch_both_layouts(warp, img, transform, (19, 23), order, mode, 9)
+    np.testing.assert_array_equal(by_row, by_pixel)
+    want, _ = reference(img, transform, (19, 23), order, mode, 9)
+    assert_images_agree(by_row, want, img.dtype.type)
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_antialiased_row_and_pixel_kernels_give_the_same_bits(warp, order):
+    shrink = FPI([[0, 0], [40, 0], [40, 30], [0, 30]], [[10, 8], [22, 9], [24, 18], [11, 17]])
+    img = make_image((31, 41, 2), np.uint8, seed=3)
+    by_row, by_pixel = _launch_both_layouts(warp, img, shrink, (30, 40), order, "reflect", 5, antialias=True)
+    np.testing.assert_array_equal(by_row, by_pixel)
+    np.testing.assert_array_equal(by_row, warp.warp_image(img, shrink, (30, 40), order=order, mode="reflect",
+                                                          cval=np.full(2, 5.0), antialias=True))
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@pytest.mark.parametrize("mode", MODES)
+def test_taps_at_the_edges_take_the_border_rule(warp, order, mode):
+    """Translations by fractions of a pixel put source positions on, just
+    inside and just beyond every edge: the direct path ends exactly where
+    the border rule starts (float32 images, within 1e-5 of the float64
+    reference: the sampling's float32 rounding). Order 0 skips the shifts
+    by half a pixel, where floor(x + 0.5) is a tie that float32 and float64
+    positions may break either way."""
+    img = make_image((9, 12, 1), np.float32, seed=5)
+    corners = np.array([[0, 0], [11, 0], [11, 8], [0, 8]], dtype=np.float64)
+    for shift in (-1.5, -0.75, -0.25, 0.25, 0.5, 1.25):
+        if order == 0 and shift % 1 == 0.5:
+            continue
+        transform = FPI(corners, corners + [shift, -shift])
+        want, cv = reference(img, transform, (9, 12), order, mode, 0.25)
+        got = warp.warp_image(img, transform, (9, 12), order=order, mode=mode, cval=cv)
+        np.testing.assert_allclose(got, want, atol=1e-5, rtol=0)

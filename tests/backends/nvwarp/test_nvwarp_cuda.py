@@ -38,7 +38,6 @@ def test_the_cuda_host_paths_logic_on_the_cpu_device(warp_backend, rng, monkeypa
     import contextlib
 
     import numpy as np
-    from fpiwarp.kernels.nvwarp import batch as warp_batch
     from support.batch_cases import loop, make_map
 
     from fpiwarp.backends import get_backend
@@ -65,7 +64,7 @@ def test_the_cuda_host_paths_logic_on_the_cpu_device(warp_backend, rng, monkeypa
     monkeypatch.setattr(wp, "empty", lambda *a, pinned=False, **kw: real_empty(*a, **kw))
     monkeypatch.setattr(warp_batches, "CHUNK_BYTES", 1)
     monkeypatch.setattr(warp_batches, "PIPELINE_CHUNK_BYTES", 1)
-    runner = warp_batches.BatchRunner(wp, be.device, False, be._launch, warp_batch)
+    runner = warp_batches.BatchRunner(be, on_cpu=False)
     stack = rng.integers(0, 256, size=(5, 9, 11, 3), dtype=np.uint8)
     maps = [make_map(kind, k, 11, 9) for k, kind in enumerate(["fpi", "tps", "shift", "fpi", "compound"])]
     for transforms in (maps, maps[:1]):

@@ -1,0 +1,240 @@
+"""Every NVIDIA Warp kernel of fpiwarp, made by one factory from one stage
+walk and one sampler, cached by what it specializes on.
+
+:func:`image_kernel` makes the image kernels (one image, a batch, on
+contiguous stacks or on 4-D views of any strides, plain or antialiased)
+and :func:`point_kernel` the point kernels (one set, a batch of sets) from
+the module-level functions of :mod:`.stage` (:func:`~.stage.stage`,
+:func:`~.stage.walk`) and :mod:`.sample` (:func:`~.sample.sample`,
+:func:`~.sample.sample_footprint`, :func:`~.sample.store_pixel`). What a
+kernel specializes on is its :class:`ImageKernel` (or :class:`PointKernel`)
+key: each field is a constant of the kernel (``wp.static``: the compiler
+drops the code the key does not use and unrolls the rest) or, where
+``None``, a run-time value (read from the block or passed as an argument),
+so one kernel serves every value. The kernel for a key is made once per
+process (:func:`image_kernel` keeps it) in a Warp module of its own whose
+name says what it is and whose hash is stable, so Warp compiles it once
+per device and caches the binary on disk (as ``warp.fem``'s
+``dynamic_kernel`` does: a specialization is named by its key, never a
+fresh closure per call).
+
+One image is a batch of one: every image kernel takes (blocks (B, rows)
+vec4, images (K,) int, img, out, H, oh, step, order, mode, cval vec4,
+first row). Rows [k·oh, (k + 1)·oh) of the launch are output image
+``images[k]`` warped by block ``k·step`` (step 0: one block for all, 1:
+one each), so that bands of rows split a batch like one tall image. With
+``rows`` a thread runs along one output row (Warp's CPU device: the
+index arithmetic of the batch and the kernel's arguments are paid once a
+row, not once a pixel), else a thread is one pixel (CUDA).
+"""
+
+import hashlib
+import threading
+from typing import NamedTuple
+
+import numpy as np
+import warp as wp
+
+from .sample import in_range, sample, sample_footprint, store_pixel
+from .stage import then_stage, walk
+
+_cache = {}
+_lock = threading.Lock()
+
+#: The numpy dtypes of images the kernels read and write, with their top value
+#: (integer outputs are rounded and clipped to [0, top]; 0: float, not clipped).
+DTYPES = {"uint8": 255.0, "uint16": 65535.0, "float32": 0.0}
+
+
+class ImageKernel(NamedTuple):
+    """What an image kernel specializes on (``None``: a run-time value).
+
+    kind: each stage's (core, number of regions) (:func:`kind_key`), or
+        None for a kernel that reads every stage's kind from the block
+        (maps of any kind in one launch).
+    order, mode: interpolation order (0, 1, 3) and border mode (an index
+        of :data:`fpiwarp.block.sampling_rules.MODES`), or None (taken
+        from the kernel's ``order`` / ``mode`` arguments).
+    channels: 1-4, or None (the image's last axis).
+    dtype: "uint8", "uint16" or "float32".
+    strided: (N, H, W, C) stacks of any strides, image n the view ``img[n]``
+        (else (N·H, W, C) arrays, image n rows [n·H, (n + 1)·H)).
+    rows: a thread per output row (else per pixel).
+    antialias: average over the footprint of the map's Jacobian.
+    """
+
+    kind: tuple | None
+    order: int | None
+    mode: int | None
+    channels: int | None
+    dtype: str
+    strided: bool = False
+    rows: bool = False
+    antialias: bool = False
+
+
+class PointKernel(NamedTuple):
+    """What a point kernel specializes on: ``sets``: (N, P) point sets,
+    set n mapped by block ``which[n]`` (else one (P,) set by block 0)."""
+
+    sets: bool = False
+
+
+def kind_key(kind):
+    """What a kernel specializes on for a :class:`fpiwarp.block.BlockKind`:
+    each stage's (core, number of regions)."""
+    return tuple((int(s.core), int(s.n_regions)) for s in kind.stages)
+
+
+def image_spec(kind, order, mode, channels, dtype, *, strided=False, rows=False, antialias=False):
+    """An :class:`ImageKernel` with its fields normalized (numpy dtypes by
+    name, numbers as ints), so equal requests share a kernel."""
+    return ImageKernel(
+        None if kind is None else tuple((int(c), int(r)) for c, r in kind),
+        None if order is None else int(order),
+        None if mode is None else int(mode),
+        None if channels is None else int(channels),
+        np.dtype(dtype).name,
+        bool(strided),
+        bool(rows),
+        bool(antialias),
+    )
+
+
+def _module_name(prefix, key):
+    """A Warp module name that says what is inside and is unique per key."""
+    digest = hashlib.blake2b(repr(tuple(key)).encode(), digest_size=5).hexdigest()
+    return f"fpiwarp_nvwarp_{prefix}_{digest}"
+
+
+def _cached(key, make):
+    with _lock:
+        kernel = _cache.get(key)
+        if kernel is None:
+            kernel = _cache[key] = make(key)
+    return kernel
+
+
+def image_kernel(spec):
+    """The image kernel for an :class:`ImageKernel` (see :func:`image_spec`), made once per process."""
+    if not isinstance(spec, ImageKernel):
+        raise TypeError(f"image_kernel takes an ImageKernel, got {type(spec).__name__}")
+    if spec.dtype not in DTYPES:
+        raise ValueError(f"no image kernel for dtype {spec.dtype}; the kernels read {sorted(DTYPES)}")
+    return _cached(spec, _make_image_kernel)
+
+
+def point_kernel(spec=None):
+    """The point kernel for a :class:`PointKernel`, made once per process.
+    Arguments: (blocks (B, rows) vec4, which (N,) int, points, out, first);
+    float64 in and out, float32 inside; thread i maps point first + i
+    (of the flattened (N, P) sets). Default: one set."""
+    spec = PointKernel() if spec is None else spec
+    if not isinstance(spec, PointKernel):
+        raise TypeError(f"point_kernel takes a PointKernel, got {type(spec).__name__}")
+    return _cached(spec, _make_point_kernel)
+
+
+def _make_image_kernel(spec):
+    KIND = spec.kind
+    ORDER, MODE, CHANNELS = spec.order, spec.mode, spec.channels
+    T = wp.dtype_from_numpy(np.dtype(spec.dtype))
+    TOP = DTYPES[spec.dtype]
+    STRIDED, ROWS, AA = spec.strided, spec.rows, spec.antialias
+    Stack = wp.array4d(dtype=T) if STRIDED else wp.array3d(dtype=T)
+    label = f"image_{spec.dtype}_o{ORDER}_m{MODE}_c{CHANNELS}{'_aa' if AA else ''}{'_rows' if ROWS else ''}"
+
+    def warp_image(
+        blks: wp.array2d(dtype=wp.vec4),
+        images: wp.array(dtype=int),
+        img: Stack,
+        out: Stack,
+        h: int,
+        oh: int,
+        step: int,
+        order: int,
+        mode: int,
+        cval: wp.vec4,
+        row0: int,
+    ):
+        if wp.static(ROWS):
+            r = wp.tid() + row0
+            x_first = 0
+        else:
+            r, x_first = wp.tid()
+            r = r + row0
+        if wp.static(STRIDED):
+            oh = out.shape[1]
+        k = r / oh  # Warp's int division truncates, as floor for r >= 0
+        n = images[k]
+        blk = blks[k * step]
+        y = r - k * oh
+        if wp.static(STRIDED):
+            src = img[n]
+            dst = out[n]
+            src0 = 0
+            dst0 = 0
+            h = img.shape[1]
+        else:
+            src = img
+            dst = out
+            src0 = n * h
+            dst0 = n * oh
+        x_last = x_first + 1
+        if wp.static(ROWS):
+            x_last = dst.shape[1]
+        if wp.static(ORDER is not None):
+            order = wp.static(ORDER)
+        if wp.static(MODE is not None):
+            mode = wp.static(MODE)
+        channels = src.shape[2]
+        if wp.static(CHANNELS is not None):
+            channels = wp.static(CHANNELS)
+        oy = dst0 + y
+        x = x_first
+        while x < x_last:  # (a while loop: Warp's range loop carries a step sign through every iteration)
+            z = wp.vec2(float(x), float(y))
+            if wp.static(KIND is None):
+                s, dz, dzb = walk(blk, z, wp.static(AA))
+            else:
+                s = z
+                dz = wp.vec2(1.0, 0.0)
+                dzb = wp.vec2(0.0, 0.0)
+                for i in range(wp.static(len(KIND))):
+                    s, dz, dzb = then_stage(blk, i, s, dz, dzb, wp.static(KIND[i][0]), wp.static(KIND[i][1]),
+                                            wp.static(AA))
+            v = cval
+            if in_range(s):
+                if wp.static(AA):
+                    v = sample_footprint(src, src0, h, s, dz, dzb, order, mode, cval, channels)
+                else:
+                    v = sample(src, src0, h, s, order, mode, cval, channels)
+            store_pixel(dst, oy, x, v, channels, wp.static(TOP))
+            x = x + 1
+
+    warp_image.__name__ = warp_image.__qualname__ = label
+    return wp.kernel(warp_image, enable_backward=False, module=_module_name(label, spec))
+
+
+def _make_point_kernel(spec):
+    SETS = spec.sets
+    Points = wp.array2d(dtype=wp.vec2d) if SETS else wp.array(dtype=wp.vec2d)
+
+    def map_points(
+        blks: wp.array2d(dtype=wp.vec4), which: wp.array(dtype=int), pts: Points, out: Points, first: int
+    ):
+        i = wp.tid() + first
+        if wp.static(SETS):
+            n = i // pts.shape[1]
+            j = i - n * pts.shape[1]
+            p = pts[n, j]
+            w, dz, dzb = walk(blks[which[n]], wp.vec2(wp.float32(p[0]), wp.float32(p[1])), False)
+            out[n, j] = wp.vec2d(wp.float64(w[0]), wp.float64(w[1]))
+        else:
+            p = pts[i]
+            w, dz, dzb = walk(blks[which[0]], wp.vec2(wp.float32(p[0]), wp.float32(p[1])), False)
+            out[i] = wp.vec2d(wp.float64(w[0]), wp.float64(w[1]))
+
+    label = f"points{'_sets' if SETS else ''}"
+    map_points.__name__ = map_points.__qualname__ = label
+    return wp.kernel(map_points, enable_backward=False, module=_module_name(label, spec))

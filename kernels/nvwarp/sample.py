@@ -1,0 +1,272 @@
+"""The sampler in NVIDIA Warp: one for every kernel.
+
+Mirrors :mod:`fpiwarp.sampling.sampler` (orders 0/1/3, border modes,
+non-finite positions or positions beyond COORD_LIMIT give ``cval``,
+integer outputs rounded with floor(v + 0.5) and clipped) and
+:mod:`fpiwarp.sampling.antialias` (nx × ny sub-samples of the footprint
+spanned by the Jacobian's columns, each sampled like one position,
+averaged). The functions are generic in the pixel type (Warp makes one
+overload per dtype) and take the order, border mode and channel count as
+arguments: a kernel made for one kind of sampling passes constants
+(:mod:`fpiwarp.kernels.nvwarp.factory`, through ``wp.static``) and the
+compiler drops what that kind does not use.
+
+An image is ``h`` rows starting at row ``src0`` of an (rows, W, C) array,
+so the images of a batch are row offsets into one (N·H, W, C) array.
+"""
+
+from typing import Any
+
+import warp as wp
+
+from .contract import (
+    AA_FAR_SPACING,
+    AA_KNEE_TAPS,
+    AA_MAX_TAPS,
+    AA_SLACK,
+    AA_SPACING,
+    COORD_LIMIT,
+    MODE_CONSTANT,
+    MODE_REFLECT,
+    MODE_WRAP,
+)
+
+wp.set_module_options({"enable_backward": False})
+
+
+# --- border rules and weights -------------------------------------------------
+
+
+@wp.func
+def border_index(i: int, n: int, mode: int):
+    """A tap's integer index made valid for ``mode``; constant mode clamps
+    (its outside taps are replaced by cval through ``inside``)."""
+    if mode == MODE_WRAP:
+        m = i % n
+        if m < 0:
+            m = m + n
+        return m
+    if mode == MODE_REFLECT:
+        if n == 1:
+            return 0
+        period = 2 * (n - 1)
+        m = i % period
+        if m < 0:
+            m = m + period
+        if m >= n:
+            m = period - m
+        return m
+    return wp.clamp(i, 0, n - 1)
+
+
+@wp.func
+def inside(i: int, n: int, mode: int):
+    """Whether a tap reads the image: always, except outside it in constant mode."""
+    return mode != MODE_CONSTANT or (i >= 0 and i < n)
+
+
+@wp.func
+def tap(value: float, cval: float, is_inside: bool):
+    """A tap's value: the pixel, or cval for a constant-mode tap outside."""
+    if is_inside:
+        return value
+    return cval
+
+
+@wp.func
+def cubic_weights(t: float):
+    """Keys' cubic convolution weights (a = -0.5) for offsets -1, 0, 1, 2."""
+    t2 = t * t
+    t3 = t2 * t
+    return wp.vec4(
+        -0.5 * t3 + t2 - 0.5 * t,
+        1.5 * t3 - 2.5 * t2 + 1.0,
+        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+        0.5 * t3 - 0.5 * t2,
+    )
+
+
+@wp.func
+def in_range(s: wp.vec2):
+    """False for positions that are non-finite or beyond COORD_LIMIT: cval.
+    (NaN fails every comparison and |inf| exceeds the limit, so the two
+    comparisons are the whole test, without a call per component.)"""
+    return wp.abs(s[0]) <= COORD_LIMIT and wp.abs(s[1]) <= COORD_LIMIT
+
+
+@wp.func
+def clip_coord(v: float):
+    return wp.clamp(v, -COORD_LIMIT, COORD_LIMIT)
+
+
+# --- one position ---------------------------------------------------------------
+#
+# Channel loops run over range(4) with ``c < channels`` inside: Warp
+# unrolls a loop of constant length, and where ``channels`` is a constant
+# of the kernel the compiler drops the channels it does not have. A tap
+# footprint inside the image (the common case) calls the taps' function
+# with its indices as they are and every tap inside (literal ``True``s, so
+# the compiler drops the border's selects and index checks there); near
+# the edges the border rule (``border_index``, ``inside``) gives the
+# indices and flags. Both read the same values in the same arithmetic.
+
+
+@wp.func
+def nearest_tap(img: wp.array3d(dtype=Any), r: int, q: int, ok: bool, cval: wp.vec4, channels: int):
+    """Order 0's one tap, pixel (r, q), for every channel (cval where not ``ok``)."""
+    v = wp.vec4(0.0)
+    for c in range(4):
+        if c < channels:
+            v[c] = tap(float(img[r, q, c]), cval[c], ok)
+    return v
+
+
+@wp.func
+def bilinear_taps(
+    img: wp.array3d(dtype=Any), r0: int, r1: int, c0: int, c1: int, ok00: bool, ok01: bool, ok10: bool,
+    ok11: bool, tx: float, ty: float, cval: wp.vec4, channels: int,
+):
+    """Order 1 over rows r0, r1 and columns c0, c1 (cval where a tap is not ``ok``)."""
+    v = wp.vec4(0.0)
+    for c in range(4):
+        if c < channels:
+            v00 = tap(float(img[r0, c0, c]), cval[c], ok00)
+            v01 = tap(float(img[r0, c1, c]), cval[c], ok01)
+            v10 = tap(float(img[r1, c0, c]), cval[c], ok10)
+            v11 = tap(float(img[r1, c1, c]), cval[c], ok11)
+            v[c] = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
+    return v
+
+
+@wp.func
+def cubic_taps(
+    img: wp.array3d(dtype=Any), rows: wp.vec4i, cols: wp.vec4i, all_in: bool, row_in: wp.vec4i, col_in: wp.vec4i,
+    wx: wp.vec4, wy: wp.vec4, cval: wp.vec4, channels: int,
+):
+    """Order 3 over 4 × 4 taps (cval where a tap's row or column is not
+    inside, unless ``all_in``)."""
+    v = wp.vec4(0.0)
+    for j in range(4):
+        row = rows[j]
+        acc = wp.vec4(0.0)
+        for i in range(4):
+            col = cols[i]
+            ok = all_in or (row_in[j] != 0 and col_in[i] != 0)
+            for c in range(4):
+                if c < channels:
+                    acc[c] = acc[c] + wx[i] * tap(float(img[row, col, c]), cval[c], ok)
+        v = v + wy[j] * acc
+    return v
+
+
+@wp.func
+def sample(
+    img: wp.array3d(dtype=Any), src0: int, h: int, s: wp.vec2, order: int, mode: int, cval: wp.vec4,
+    channels: int,
+):
+    """sampler.sample of the first ``channels`` channels at s (in range):
+    the taps' indices and weights computed once for all channels."""
+    w = img.shape[1]
+    sx = clip_coord(s[0])
+    sy = clip_coord(s[1])
+    if order == 0:
+        ix = int(wp.floor(sx + 0.5))
+        iy = int(wp.floor(sy + 0.5))
+        if ix >= 0 and ix < w and iy >= 0 and iy < h:
+            return nearest_tap(img, src0 + iy, ix, True, cval, channels)
+        ok = inside(ix, w, mode) and inside(iy, h, mode)
+        return nearest_tap(img, src0 + border_index(iy, h, mode), border_index(ix, w, mode), ok, cval, channels)
+    fx = wp.floor(sx)
+    fy = wp.floor(sy)
+    tx = sx - fx
+    ty = sy - fy
+    if order == 1:
+        x0 = int(fx)
+        y0 = int(fy)
+        if x0 >= 0 and x0 + 1 < w and y0 >= 0 and y0 + 1 < h:
+            return bilinear_taps(img, src0 + y0, src0 + y0 + 1, x0, x0 + 1, True, True, True, True, tx, ty, cval,
+                                 channels)
+        in_x0 = inside(x0, w, mode)  # all True but in constant mode
+        in_x1 = inside(x0 + 1, w, mode)
+        in_y0 = inside(y0, h, mode)
+        in_y1 = inside(y0 + 1, h, mode)
+        return bilinear_taps(img, src0 + border_index(y0, h, mode), src0 + border_index(y0 + 1, h, mode),
+                             border_index(x0, w, mode), border_index(x0 + 1, w, mode), in_y0 and in_x0,
+                             in_y0 and in_x1, in_y1 and in_x0, in_y1 and in_x1, tx, ty, cval, channels)
+    wx = cubic_weights(tx)
+    wy = cubic_weights(ty)
+    x0 = int(fx) - 1
+    y0 = int(fy) - 1
+    if x0 >= 0 and x0 + 3 < w and y0 >= 0 and y0 + 3 < h:
+        rows = wp.vec4i(src0 + y0, src0 + y0 + 1, src0 + y0 + 2, src0 + y0 + 3)
+        ones = wp.vec4i(1, 1, 1, 1)
+        return cubic_taps(img, rows, wp.vec4i(x0, x0 + 1, x0 + 2, x0 + 3), True, ones, ones, wx, wy, cval, channels)
+    cols = wp.vec4i(0)
+    rows = wp.vec4i(0)
+    col_in = wp.vec4i(0)
+    row_in = wp.vec4i(0)
+    for i in range(4):
+        cols[i] = border_index(x0 + i, w, mode)
+        rows[i] = src0 + border_index(y0 + i, h, mode)
+        col_in[i] = int(inside(x0 + i, w, mode))
+        row_in[i] = int(inside(y0 + i, h, mode))
+    return cubic_taps(img, rows, cols, False, row_in, col_in, wx, wy, cval, channels)
+
+
+# --- antialiasing: the footprint's sub-samples ------------------------------------
+
+
+@wp.func
+def tap_count(length: float):
+    """antialias.tap_counts: 1 for length <= 1 + AA_SLACK or NaN, else
+    ceil(min(length / AA_SPACING, max(AA_KNEE_TAPS, length / AA_FAR_SPACING))
+    - AA_SLACK) in 2..AA_MAX_TAPS."""
+    if length != length or length <= 1.0 + AA_SLACK:
+        return 1
+    n = wp.min(length / AA_SPACING, wp.max(float(AA_KNEE_TAPS), length / AA_FAR_SPACING))
+    return int(wp.clamp(wp.ceil(n - AA_SLACK), 2.0, float(AA_MAX_TAPS)))
+
+
+@wp.func
+def sample_footprint(
+    img: wp.array3d(dtype=Any), src0: int, h: int, s: wp.vec2, dz: wp.vec2, dzb: wp.vec2, order: int,
+    mode: int, cval: wp.vec4, channels: int,
+):
+    """antialias.sample_antialiased at s (in range), whose map has the
+    Wirtinger derivatives dz, dzb there: one :func:`sample` where the
+    footprint is small, else the mean of nx × ny sub-samples."""
+    ex = dz + dzb
+    ey = wp.vec2(dzb[1] - dz[1], dz[0] - dzb[0])
+    nx = tap_count(wp.sqrt(ex[0] * ex[0] + ex[1] * ex[1]))
+    ny = tap_count(wp.sqrt(ey[0] * ey[0] + ey[1] * ey[1]))
+    if nx == 1 and ny == 1:
+        return sample(img, src0, h, s, order, mode, cval, channels)
+    fnx = float(nx)
+    fny = float(ny)
+    inv = 1.0 / (fnx * fny)
+    acc = wp.vec4(0.0)
+    for j in range(ny):
+        t = (2.0 * float(j) + 1.0 - fny) / (2.0 * fny)
+        for i in range(nx):
+            sub = (2.0 * float(i) + 1.0 - fnx) / (2.0 * fnx)
+            p = s + (ex * sub + ey * t)
+            if in_range(p):
+                acc = acc + sample(img, src0, h, p, order, mode, cval, channels)
+            else:
+                acc = acc + cval
+    return acc * inv
+
+
+# --- writing a pixel --------------------------------------------------------------
+
+
+@wp.func
+def store_pixel(out: wp.array3d(dtype=Any), y: int, x: int, v: wp.vec4, channels: int, top: float):
+    """Write the first ``channels`` values of v at (y, x): integer images
+    (top > 0) round floor(v + 0.5) and clip to [0, top]."""
+    for c in range(4):
+        if c < channels:
+            value = v[c]
+            if top > 0.0:
+                value = wp.clamp(wp.floor(value + 0.5), 0.0, top)
+            out[y, x, c] = out.dtype(value)
