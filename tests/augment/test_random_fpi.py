@@ -58,7 +58,7 @@ def centroids(img, predicted, radius=5):
 @pytest.mark.parametrize("backend", ["numpy", "opencl"])
 def test_the_dot_test(backend):
     if backend != "numpy":
-        from conftest import use_backend
+        from support.requirements import use_backend
 
         use_backend(backend)
     img, centres = dots((256, 256))
@@ -158,7 +158,7 @@ def test_polygons_vertex_wise_with_densification():
 
 @pytest.mark.parametrize("backend", ["numpy", "opencl", "warp", "gl"])
 def test_batch_equals_the_loop_on_every_backend(backend):
-    from conftest import use_backend
+    from support.requirements import use_backend
 
     use_backend(backend)
     rng = np.random.default_rng(4)

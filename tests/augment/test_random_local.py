@@ -69,7 +69,7 @@ def test_boxes_are_the_bounds_of_the_densely_mapped_outline():
 @pytest.mark.parametrize("backend", ["numpy", "opencl"])
 def test_masks_keep_labels_and_batches_equal_the_loop(backend):
     if backend != "numpy":
-        from conftest import use_backend
+        from support.requirements import use_backend
 
         use_backend(backend)
     rng = np.random.default_rng(4)

@@ -120,7 +120,7 @@ def test_calibration_off_ranks_by_the_registry(fresh, monkeypatch):
 def test_a_backend_whose_kernels_fail_to_build_is_skipped_with_its_reason(fresh, monkeypatch):
     """What the pip-only PoCL 3.0-rc2 does on an AVX-512 CPU, simulated: every
     build raises pyopencl's RuntimeError with its log."""
-    from conftest import use_backend
+    from support.requirements import use_backend
 
     use_backend("opencl")
     cl = pytest.importorskip("pyopencl")
@@ -155,7 +155,7 @@ def test_a_backend_whose_kernels_fail_to_build_is_skipped_with_its_reason(fresh,
 
 
 def test_an_explicit_backend_whose_build_fails_raises_a_one_line_error(monkeypatch):
-    from conftest import use_backend
+    from support.requirements import use_backend
 
     use_backend("opencl")
     cl = pytest.importorskip("pyopencl")

@@ -17,12 +17,15 @@ CONSTRUCTIONS = st.sampled_from(["continuous", "paper"])
 
 def build(src, dst, edges, construction):
     """LocalDeformation, rejecting the configurations the continuous
-    construction refuses on purpose (lines meeting inside the extent, or
-    no spline within the edge bound over the extended edges)."""
+    construction refuses on purpose: lines meeting inside the extent, every
+    spline within the edge bound over the extended edges folding over, or
+    the chosen one folding (a one-line ConstraintError / FoldOverError; the
+    refusals themselves are tested in test_local_continuity.py)."""
     try:
         return LocalDeformation(src, dst, edges=edges, construction=construction)
-    except fpiwarp.ConstraintError as exc:
-        if construction == "continuous" and ("meet at" in str(exc) or "no spline" in str(exc)):
+    except (fpiwarp.ConstraintError, fpiwarp.FoldOverError) as exc:
+        if construction == "continuous" and (isinstance(exc, fpiwarp.FoldOverError) or "meet at" in str(exc)
+                                             or "no spline" in str(exc) or "fold over" in str(exc)):
             reject()
         raise
 

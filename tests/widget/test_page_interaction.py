@@ -87,7 +87,8 @@ def test_clicking_two_edges_builds_the_python_local_deformation(page, session):
     # the page draws the block of that map: its frame is the numpy warp of it
     frame = browser.capture(driver)[:, :, :3]
     ref = fpiwarp.warp_image(session.image, expected, backend="numpy")
-    assert np.mean(np.abs(frame.astype(int) - ref).max(-1) <= 2) >= 0.99
+    # 98 %: the local deformation's float32 Newton inverse (see test_page_parity)
+    assert np.mean(np.abs(frame.astype(int) - ref).max(-1) <= 2) >= 0.98
     _click_edge(driver, 0)  # a constrained edge clicked again is freed
     assert session.editor.edges == [2] and isinstance(session.transform, FPI)
     assert not browser.console_problems(driver)
