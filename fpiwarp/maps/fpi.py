@@ -447,7 +447,6 @@ class FPIStack(Sequence):
 
 
 def _fpi_many(src, dst):
-    from ..errors import FpiwarpError  # noqa: PLC0415
 
     names = ("src", "dst")
     arrs = []
@@ -473,13 +472,7 @@ def _fpi_many(src, dst):
     parts = [np.concatenate([c[0][k] for c in chunks]) if chunks else np.zeros(0, complex) for k in range(9)]
     rebuild = np.concatenate([c[1] for c in chunks]) if chunks else np.zeros(0, bool)
     for i in np.flatnonzero(rebuild):
-        try:
-            f = FPI(arrs[0][i], arrs[1][i])
-        except FpiwarpError as exc:
-            raise type(exc)(f"map {i} of {n}: {exc}") from None
-        for part, value in zip(parts, (f.m_src.q, f.m_src.s, f.m_src.alpha, f.linear.l1, f.linear.l2, f.linear.l3,
-                                       f.m_dst.q, f.m_dst.s, f.m_dst.alpha)):
-            part[i] = value
+        _one_into(parts, i, arrs, n)
     return FPIStack(z, w, tuple(parts))
 
 
@@ -493,18 +486,23 @@ def _parts_of(f):
             f.m_dst.alpha)
 
 
-def _from_fpis(arrs, n, z, w):
+def _one_into(parts, i, arrs, n):
+    """Build map i of n as one FPI (its own checks and errors, prefixed with
+    which map) and write its nine parts into ``parts`` at i."""
     from ..errors import FpiwarpError  # noqa: PLC0415
 
+    try:
+        f = FPI(arrs[0][i], arrs[1][i])
+    except FpiwarpError as exc:
+        raise type(exc)(f"map {i} of {n}: {exc}") from None
+    for part, value in zip(parts, _parts_of(f)):
+        part[i] = value
+
+
+def _from_fpis(arrs, n, z, w):
     parts = [np.zeros(n, complex) for _ in range(9)]
     for i in range(n):
-        try:
-            f = FPI(arrs[0][i], arrs[1][i])
-        except FpiwarpError as exc:
-            raise type(exc)(f"map {i} of {n}: {exc}") from None
-        for part, value in zip(parts, (f.m_src.q, f.m_src.s, f.m_src.alpha, f.linear.l1, f.linear.l2, f.linear.l3,
-                                       f.m_dst.q, f.m_dst.s, f.m_dst.alpha)):
-            part[i] = value
+        _one_into(parts, i, arrs, n)
     return FPIStack(z, w, tuple(parts))
 
 
