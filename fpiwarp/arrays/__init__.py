@@ -16,7 +16,7 @@ numpy arrays (unchanged behaviour):
 
 With ``backend=None`` (the default) the backend follows the data, as the
 registry declares it (each entry's ``default_for``, ``reads``): for numpy
-images the fast default (:mod:`fpiwarp.backends.default`), for numpy
+images the fast default (``fpiwarp.backends.default``), for numpy
 points the numpy reference, "opencl" for pyopencl arrays, "gl" for
 textures, "warp" for Warp, DLPack and CUDA arrays. A backend that cannot
 read the data in place (a CUDA tensor for "opencl", a texture for

@@ -73,7 +73,7 @@ class ArrayInfo:
     def default_backend(self) -> str:
         """The backend the registry names for this kind when the caller
         names none (for host kinds the reference, "numpy", which the fast
-        default of :func:`choose_backend` falls back to)."""
+        default of ``choose_backend`` falls back to)."""
         return DEFAULT_BACKENDS[self.kind]
 
 

@@ -5,7 +5,7 @@
 (H, W, C) with C = 2 gray+alpha, 3 RGB, 4 RGBA or CMYK), as imageio,
 scikit-image, OpenCV and ``np.asarray(PIL.Image.open(path))`` do;
 ``read_image(path, with_info=True)`` returns ``(array, info)``, an
-:class:`ImageInfo` with what is needed to write the result back the same
+:class:`~fpiwarp.io.ImageInfo` with what is needed to write the result back the same
 way: format, color mode and metadata (ICC profile, EXIF, resolution, PNG
 text and color chunks, JPEG quantization tables, TIFF compression).
 ``write_image(path, array, info)`` writes atomically: into a temporary file
@@ -101,7 +101,7 @@ def read_image(
         An image of more pixels is refused from its header, before
         decoding; default ``fpiwarp.io.MAX_PIXELS``, Pillow's limit.
     with_info : bool, optional
-        Also return the file's :class:`ImageInfo` (default False: the
+        Also return the file's :class:`~fpiwarp.io.ImageInfo` (default False: the
         pixels only, like every other image reader).
     damaged : {"refuse", "accept"}, optional
         "refuse" (the default): a file that a forgiving decoder would
