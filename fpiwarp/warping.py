@@ -283,9 +283,9 @@ class Warper:
     Options are checked once here, with the errors of
     :func:`fpiwarp.warp_image`. ``backend=None`` (the default) is the fast
     default of :func:`fpiwarp.warp_image` for numpy images, chosen here
-    (:attr:`backend` names it). Calling the warper on an image returns what
+    (``backend`` names it). Calling the warper on an image returns what
     ``warp_image(image, transform, output_shape, ...)`` returns; the map is
-    bound to the backend once (see :mod:`fpiwarp.batch`). Picklable (for
+    bound to the backend once (see ``fpiwarp.batch``). Picklable (for
     Dask workers): the bound map is rebuilt where the warper is unpickled.
     Device arrays (:mod:`fpiwarp.arrays`) of the warper's backend are
     warped in place by :func:`fpiwarp.warp_image` (the map is not bound).
