@@ -494,6 +494,7 @@ def run(verbose=False):
         try:
             for case in _api_cases(api_files, api_root) + _cli_cases(cli_files, cli_root):
                 outcome, detail = classify(case)
+                detail = detail.replace(str(tmp), "<tmp>")  # the run's scratch folder, not a path to publish
                 rows.append((case, outcome, detail))
                 if verbose:
                     print(f"{'cli' if case.cli else 'api'} {case.family:18} {case.name:38} {outcome:15} {detail}")
