@@ -22,7 +22,7 @@ from ..validation import (
 )
 from . import convert
 from .kinds import HOST_KINDS, HOST_VIEW_KINDS, TO_HOST, array_info, choose_backend
-from .outputs import check_host_out, copy_points_out
+from .outputs import check_host_out, copy_host_out, copy_points_out
 
 CHANNELS = ("last", "first")
 
@@ -190,10 +190,7 @@ def _host(image, transform, call, name, host_warp):
         result = np.moveaxis(result, 2, 0)
     if out is None:
         return np.ascontiguousarray(result) if first else result
-    if out.shape != result.shape or out.dtype != result.dtype:
-        raise ArgumentError(f"out= must be {result.shape} {result.dtype}, got {out.shape} {out.dtype}")
-    np.copyto(out, result)
-    return out
+    return copy_host_out(result, out)
 
 
 def map_points(transform, points, backend, out, host_map):

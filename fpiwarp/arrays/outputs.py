@@ -1,8 +1,8 @@
 """The caller's ``out=`` on every array path: the one-line errors for an
 ``out=`` that overlaps its input or is not of the input's kind, and the
 copy into a numpy ``out=`` of the host paths. The device paths
-(``dispatch``, ``batch_path``, ``opencl_path``,
-``warp_path``) all import from here, so nothing here imports them.
+(``fpiwarp.arrays.dispatch``, ``fpiwarp.batch.arrays`` and each backend's
+``arrays`` module) all import from here, so nothing here imports them.
 """
 
 import numpy as np
@@ -23,6 +23,16 @@ def check_host_out(out, source, what):
         raise DeviceMismatchError(f"out= is a {type(out).__name__}; a numpy input is written into a numpy array")
     if np.shares_memory(out, source):
         raise overlap_error(what)
+
+
+def copy_host_out(result, out):
+    """``result`` of a host warp copied into the caller's numpy ``out=``
+    (already checked by :func:`check_host_out`), which must match its shape
+    and dtype; returns ``out``."""
+    if out.shape != result.shape or out.dtype != result.dtype:
+        raise ArgumentError(f"out= must be {result.shape} {result.dtype}, got {out.shape} {out.dtype}")
+    np.copyto(out, result)
+    return out
 
 
 def copy_points_out(result, out, points):

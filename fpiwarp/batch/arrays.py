@@ -25,7 +25,7 @@ from ..arrays.dispatch import (
     route,
 )
 from ..arrays.kinds import HOST_KINDS, IMAGE_ONLY_KINDS, array_info, choose_backend
-from ..arrays.outputs import check_host_out, copy_points_out
+from ..arrays.outputs import check_host_out, copy_host_out, copy_points_out
 from ..backends import backend_capabilities, check_backend_name
 from ..block.many import is_many_maps
 from ..errors import ArgumentError, ArgumentTypeError
@@ -104,10 +104,7 @@ def _host(stack, transforms, call, name, host_batch):
         result = np.moveaxis(result, 3, 1)
     if out is None:
         return np.ascontiguousarray(result)
-    if out.shape != result.shape or out.dtype != result.dtype:
-        raise ArgumentError(f"out= must be {result.shape} {result.dtype}, got {out.shape} {out.dtype}")
-    np.copyto(out, result)
-    return out
+    return copy_host_out(result, out)
 
 
 def map_points_batch(transforms, points, backend, out, host_batch):
