@@ -3,33 +3,11 @@ images and everything annotated on them."""
 
 import numpy as np
 
-from ..arrays.kinds import array_info
-from ..backends import get_backend
 from ..batch.images import warp_batch
-from ..errors import ArgumentError, BackendUnavailableError
+from ..errors import ArgumentError
 from ..warping import warp_image
 from .sampling import DRAWS, check_budget, one_random_fpi, random_fpis
 from .targets import as_boxes, as_points, box_bounds, clip_boxes, densify, inside, stack_box_bounds
-
-#: Host backends in order of preference for numpy images (the fastest first).
-HOST_PREFERENCE = ("opencl", "warp", "numpy")
-_chosen = []
-
-
-def fastest_host_backend():
-    """The first of :data:`HOST_PREFERENCE` that runs here (checked once;
-    only those candidates are probed: no GL context is made, which matters
-    because Mesa's llvmpipe and triton's LLVM, imported by torchvision,
-    crash a process that loads triton after a GL context)."""
-    if not _chosen:
-        for name in HOST_PREFERENCE:
-            try:
-                get_backend(name)
-            except BackendUnavailableError:
-                continue
-            _chosen.append(name)
-            break
-    return _chosen[0]
 
 
 class RandomFPI:
@@ -51,9 +29,9 @@ class RandomFPI:
         Where the draws come from: the same seed gives the same maps, on
         every backend, and ``batch`` of n gives the maps of n calls.
     backend : str or None
-        Where images are warped; None: the fastest host backend for numpy
-        arrays (opencl, warp, numpy in that order), the data's own for
-        device arrays.
+        Where images are warped; None: fpiwarp's default (the fastest
+        backend that works here for numpy arrays, see
+        :func:`fpiwarp.default_backend`; the data's own for device arrays).
     antialias : bool
         Filter images over each pixel's footprint (masks never).
     order : {0, 1, 3}
@@ -112,17 +90,12 @@ class RandomFPI:
 
     def apply_to_image(self, f, image):
         """``image`` warped by map ``f`` as this transform warps images."""
-        return warp_image(image, f, order=self.order, cval=self.cval, backend=self._backend_for(image),
+        return warp_image(image, f, order=self.order, cval=self.cval, backend=self.backend,
                           antialias=self.antialias)
 
     def apply_to_mask(self, f, mask):
         """``mask`` warped by map ``f`` at order 0 (labels and dtype kept)."""
-        return warp_image(mask, f, order=0, cval=self.mask_cval, backend=self._backend_for(mask))
-
-    def _backend_for(self, array):
-        if self.backend is not None:
-            return self.backend
-        return fastest_host_backend() if array_info(array).kind in ("numpy", "host") else None
+        return warp_image(mask, f, order=0, cval=self.mask_cval, backend=self.backend)
 
     # --- one sample
     def __call__(self, *, image=None, mask=None, keypoints=None, boxes=None, polygons=None, shape=None):
@@ -178,9 +151,9 @@ class RandomFPI:
         out = {"transform": stack}
         if images is not None:
             out["images"] = warp_batch(images, stack, order=self.order, cval=self.cval,
-                                       backend=self._backend_for(images), antialias=self.antialias, channels=channels)
+                                       backend=self.backend, antialias=self.antialias, channels=channels)
         if masks is not None:
-            out["masks"] = warp_batch(masks, stack, order=0, cval=self.mask_cval, backend=self._backend_for(masks),
+            out["masks"] = warp_batch(masks, stack, order=0, cval=self.mask_cval, backend=self.backend,
                                       channels=channels)
         if keypoints is not None:
             out["keypoints"], out["keypoints_visible"] = _batch_points(stack, keypoints, hw)

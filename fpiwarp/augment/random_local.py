@@ -152,9 +152,9 @@ class RandomLocal(RandomFPI):
         out = {"transform": maps}
         if images is not None:
             out["images"] = warp_batch(images, maps, order=self.order, cval=self.cval,
-                                       backend=self._backend_for(images), antialias=self.antialias, channels=channels)
+                                       backend=self.backend, antialias=self.antialias, channels=channels)
         if masks is not None:
-            out["masks"] = warp_batch(masks, maps, order=0, cval=self.mask_cval, backend=self._backend_for(masks),
+            out["masks"] = warp_batch(masks, maps, order=0, cval=self.mask_cval, backend=self.backend,
                                       channels=channels)
         if keypoints is not None:
             mapped = [maps[i](np.asarray(k, float)) for i, k in enumerate(keypoints)]
