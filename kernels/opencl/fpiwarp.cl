@@ -180,8 +180,7 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
  * seeds each pixel's Newton from them. */
 #ifdef FW_COARSE
 #define FW_COARSE_ARGS , __global const float *restrict coarse, int nx, int ny
-#define FW_PIXEL_MAP(block, px, py) \
-    fw_map_seeded(block, fw_cx((float)(px), (float)(py)), fw_coarse_seed(coarse, nx, ny, px, py))
+#define FW_PIXEL_MAP(block, px, py) fw_map_seeded(block, coarse, nx, ny, px, py)
 #else
 #define FW_COARSE_ARGS
 #define FW_PIXEL_MAP(block, px, py) fw_map(block, fw_cx((float)(px), (float)(py)))

@@ -343,8 +343,10 @@ FW_FN fw_c fw_pre(fw_rows_t rows, fw_c z)
 /* core, n, n_regions, iters: the stage's header row (compile-time
  * constants when the kind is known, so the unused branches fold away);
  * seeded, seed: a Newton core's coarse-pass seed (fw_newton_seeded). */
-FW_FN fw_c fw_stage_seeded(fw_rows_t rows, fw_c z, bool seeded, fw_seed_t seed, int core, int n, int n_regions,
-                           int iters)
+FW_FN fw_seed_t fw_coarse_seed(__global const float *coarse, int nx, int ny, int px, int py);
+
+FW_FN fw_c fw_stage_seeded(fw_rows_t rows, fw_c z, bool seeded, __global const float *coarse, int nx, int ny,
+                           int px, int py, int core, int n, int n_regions, int iters)
 {
     float best = 0.0f;
     fw_c outside = fw_cx(NAN, NAN);
@@ -367,6 +369,10 @@ FW_FN fw_c fw_stage_seeded(fw_rows_t rows, fw_c z, bool seeded, fw_seed_t seed, 
         fw_c dz, dzb;
         p = fw_tps(p, rows, n, core == FW_CORE_TPS_PAIRS, &dz, &dzb);
     } else if (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE) {
+        /* the seed is read here only: pixels a region takes never load it */
+        fw_seed_t seed = {{NAN, NAN}, {NAN, NAN}, {NAN, NAN}};
+        if (seeded)
+            seed = fw_coarse_seed(coarse, nx, ny, px, py);
         p = fw_newton_seeded(p, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, iters, rows[4 * FW_ROW_L3 + 2], seeded,
                              seed);
     } else { /* a core this kernel does not know: outside (the host refuses it first) */
@@ -379,8 +385,7 @@ FW_FN fw_c fw_stage_seeded(fw_rows_t rows, fw_c z, bool seeded, fw_seed_t seed, 
 
 FW_FN fw_c fw_stage_kind(fw_rows_t rows, fw_c z, int core, int n, int n_regions, int iters)
 {
-    fw_seed_t none = {{0.0f, 0.0f}, {0.0f, 0.0f}, {0.0f, 0.0f}};
-    return fw_stage_seeded(rows, z, false, none, core, n, n_regions, iters);
+    return fw_stage_seeded(rows, z, false, 0, 0, 0, 0, 0, core, n, n_regions, iters);
 }
 
 /* the rows of stage k of a block */
@@ -515,14 +520,16 @@ FW_FN fw_seed_t fw_coarse_seed(__global const float *coarse, int nx, int ny, int
     return s;
 }
 
-/* fw_map with the pixel's coarse seed for the block's first Newton core */
-FW_FN fw_c fw_map_seeded(fw_block_t block, fw_c z, fw_seed_t seed)
+/* fw_map of output pixel (px, py) with its coarse seed (nx x ny nodes'
+ * records in coarse) for the block's first Newton core */
+FW_FN fw_c fw_map_seeded(fw_block_t block, __global const float *coarse, int nx, int ny, int px, int py)
 {
+    fw_c z = fw_cx((float)px, (float)py);
     bool first = true;
 #define FW_APPLY_SEEDED(rows, core, n, n_regions, iters)                                     \
     {                                                                                        \
         bool newton = core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE;      \
-        z = fw_stage_seeded(rows, z, first && newton, seed, core, n, n_regions, iters);      \
+        z = fw_stage_seeded(rows, z, first && newton, coarse, nx, ny, px, py, core, n, n_regions, iters); \
         first = first && !newton;                                                            \
     }
     FW_FOR_EACH_STAGE(block, FW_APPLY_SEEDED)

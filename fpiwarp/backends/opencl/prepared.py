@@ -33,6 +33,10 @@ IMAGE_SLACK = 4
 #: out: wrapping each new output array in a buffer (zero copy) costs about
 #: a millisecond of driver set-up per call on PoCL, more than the copy.
 ZERO_COPY_MIN_BYTES = 1 << 20
+#: A Newton map's warp runs the coarse pass (fpiwarp/block/coarse.py) first;
+#: False: each pixel solves alone (read when a job is made: benchmarks
+#: compare the two, benchmarks/local_speed.py).
+COARSE_PASS = True
 #: Jobs kept per backend (plain calls) and per bound map, least recently used dropped.
 MAX_JOBS = 4
 
@@ -69,7 +73,7 @@ class ClJob:
         name, options, self._local = tiled_program(be, image.dtype, c, order, mode, ow, antialias, kind)
         #: a Newton map's coarse pass (fpiwarp/block/coarse.py): its kernel, the records' buffer
         self._coarse = None
-        if not antialias and has_newton(kind):
+        if COARSE_PASS and not antialias and has_newton(kind):
             options = (*options, "-DFW_COARSE=1")
         program = be.kernel(name, options).program
         self._kernel = cl.Kernel(program, name)  # its own: arguments stay set between calls
