@@ -108,6 +108,12 @@ MAX_STAGES = 8
 #: Nodes per side of a Newton core's seed table (SEED_N² corrections).
 SEED_N = 8
 
+#: A warp's coarse pass (:mod:`fpiwarp.block.coarse`): output pixels between
+#: its nodes, and floats per node (x, a, b: the Newton solution and the
+#: inverse Jacobian's Wirtinger parts there).
+COARSE_STEP = 8
+COARSE_FLOATS = 6
+
 # Row offsets within a stage (see the table above).
 ROW_HEADER, ROW_PRE, ROW_SCALE, ROW_POST = 0, 1, 2, 3
 ROW_L12, ROW_L3, ROW_MU12, ROW_MU3 = 4, 5, 6, 7
@@ -133,3 +139,5 @@ CORES = {
 }
 #: The cores whose center rows are read in pairs.
 PAIRED_CORES = (CORE_TPS_PAIRS, CORE_TPS_PAIRS_INVERSE)
+#: The Newton cores (a warp's coarse pass seeds the first one's per-pixel solve).
+NEWTON_CORES = (CORE_TPS_INVERSE, CORE_TPS_PAIRS_INVERSE)

@@ -11,9 +11,8 @@ from .describe import describe, stage_rows
 from .layout import (
     CORE_AFFINE,
     CORE_TPS,
-    CORE_TPS_INVERSE,
     CORE_TPS_PAIRS,
-    CORE_TPS_PAIRS_INVERSE,
+    NEWTON_CORES,
     PAIRED_CORES,
     ROW_CENTERS,
     ROW_L3,
@@ -95,29 +94,38 @@ def region_winner(rows, kind, z, dtype):
     return best > 0, outside, slope
 
 
-def evaluate_stage(rows, kind, z, dtype):
-    """One stage (its rows and :class:`~fpiwarp.block.describe.StageKind`) on complex z."""
+def evaluate_stage(rows, kind, z, dtype, seed=None):
+    """One stage (its rows and :class:`~fpiwarp.block.describe.StageKind`) on
+    complex z; ``seed``: a Newton core's coarse-pass seeds per point (see
+    :func:`newton`)."""
     won, outside, _ = region_winner(rows, kind, z, dtype)
     if kind.core != CORE_AFFINE and kind.n_regions > 0:
         # the kernels skip the costly cores where a region wins: so does the
         # reference (per point the same numbers: every step is elementwise)
         w = np.full(z.shape, np.nan + 0j, dtype=z.dtype)
-        w[~won] = _pre_core_post(rows, kind, z[~won], dtype)
+        inner = None if seed is None else tuple(s[~won] for s in seed)
+        w[~won] = _pre_core_post(rows, kind, z[~won], dtype, inner)
         return np.where(won, outside, w)
-    return np.where(won, outside, _pre_core_post(rows, kind, z, dtype))
+    return np.where(won, outside, _pre_core_post(rows, kind, z, dtype, seed))
 
 
-def _pre_core_post(rows, kind, z, dtype):
-    """Steps 2-4 of a stage (pre-Möbius, core, post-Möbius) on complex z."""
+def pre_mobius(rows, z):
+    """Step 2 of a stage: the pre-Möbius at complex z."""
     u = z - complex_at(rows[ROW_PRE], 0)
-    p = complex_at(rows[ROW_SCALE], 0) * u / (1 - complex_at(rows[ROW_PRE], 2) * u)
+    return complex_at(rows[ROW_SCALE], 0) * u / (1 - complex_at(rows[ROW_PRE], 2) * u)
+
+
+def _pre_core_post(rows, kind, z, dtype, seed=None):
+    """Steps 2-4 of a stage (pre-Möbius, core, post-Möbius) on complex z."""
+    p = pre_mobius(rows, z)
     if kind.core == CORE_AFFINE:
         l1, l2, l3 = complex_at(rows[ROW_L12], 0), complex_at(rows[ROW_L12], 2), complex_at(rows[ROW_L3], 0)
         p = l1 * p + l2 * np.conj(p) + l3
     elif kind.core in (CORE_TPS, CORE_TPS_PAIRS):
         p = tps_core(p, rows, kind.n_centers, dtype, kind.core in PAIRED_CORES)[0]
-    elif kind.core in (CORE_TPS_INVERSE, CORE_TPS_PAIRS_INVERSE):
-        p = newton(p, rows, kind.n_centers, kind.newton_iters, rows[ROW_L3, 2], dtype, kind.core in PAIRED_CORES)
+    elif kind.core in NEWTON_CORES:
+        p = newton(p, rows, kind.n_centers, kind.newton_iters, rows[ROW_L3, 2], dtype, kind.core in PAIRED_CORES,
+                   seed)
     else:  # describe() refuses unknown cores; kept explicit like every kernel
         raise ValueError(f"unknown core {kind.core}")
     return complex_at(rows[ROW_POST], 2) + complex_at(rows[ROW_SCALE], 2) * p / (1 - complex_at(rows[ROW_POST], 0) * p)
@@ -150,10 +158,24 @@ def seed_correction(target, rows, dtype):
     return bottom + ty * (top - bottom)
 
 
-def newton(target, rows, n, iters, tol, dtype, paired=False):
+def newton(target, rows, n, iters, tol, dtype, paired=False, seed=None):
     """Solve TPS(x) = target by Newton from the inverse of the R-linear
     part plus the seed table's correction; NaN where not within ``tol``
-    after ``iters`` steps. ``paired``: the paired TPS core."""
+    after ``iters`` steps. ``paired``: the paired TPS core.
+
+    ``seed``: a warp's coarse-pass seed (x0, a, b) per target
+    (:mod:`fpiwarp.block.coarse`): where x0 is finite and TPS(x0) (its
+    value only) lies within ``tol`` of the target, the answer is x0 - (a r
+    + b conj(r)), r that residual (a step by the interpolated inverse
+    Jacobian, no derivatives taken); elsewhere the solve above."""
+    if seed is not None:
+        x0, a, b = seed
+        res = tps_core(x0, rows, n, dtype, paired)[0] - target
+        quick = np.abs(res) <= tol  # NaN seeds: False
+        out = np.where(quick, x0 - (a * res + b * np.conj(res)), np.nan).astype(target.dtype)
+        if not quick.all():  # per point, so the rest alone gives the same numbers
+            out[~quick] = newton(target[~quick], rows, n, iters, tol, dtype, paired)
+        return out
     mu1, mu2, mu3 = complex_at(rows[ROW_MU12], 0), complex_at(rows[ROW_MU12], 2), complex_at(rows[ROW_MU3], 0)
     x = mu1 * target + mu2 * np.conj(target) + mu3 + seed_correction(target, rows, dtype)
     done = np.zeros(target.shape, dtype=bool)

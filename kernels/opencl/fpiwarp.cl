@@ -175,16 +175,27 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
  * a loop over work-items and vectorizes it); then the sampling, FW_VN
  * pixels per work-item in vector types, by the first FW_LOCAL_X / FW_VN
  * work-items of each row. */
+/* FW_COARSE (a map with a Newton core, fpiwarp/block/coarse.py): warp_image
+ * takes the coarse pass's records (coarse_pass below, nx x ny nodes) and
+ * seeds each pixel's Newton from them. */
+#ifdef FW_COARSE
+#define FW_COARSE_ARGS , __global const float *restrict coarse, int nx, int ny
+#define FW_PIXEL_MAP(block, px, py) fw_map_seeded(block, coarse, nx, ny, px, py)
+#else
+#define FW_COARSE_ARGS
+#define FW_PIXEL_MAP(block, px, py) fw_map(block, fw_cx((float)(px), (float)(py)))
+#endif
+
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, FW_LOCAL_Y, 1)))
 void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int h,
-                __global FW_T *restrict dst, int ow, int oh, float4 cval FW_BATCH_ARGS)
+                __global FW_T *restrict dst, int ow, int oh, float4 cval FW_COARSE_ARGS FW_BATCH_ARGS)
 {
     FW_BATCH_SELECT(src, dst, w * h * FW_C, ow * oh * FW_C);
     __local float pos_x[FW_LOCAL_Y * FW_LOCAL_X], pos_y[FW_LOCAL_Y * FW_LOCAL_X];
     int l = get_local_id(0), oy = get_global_id(1);
     int gx0 = get_group_id(0) * FW_LOCAL_X; /* the group's first pixel */
     int row = get_local_id(1) * FW_LOCAL_X; /* the row's part of the local arrays */
-    fw_c s = fw_map(block, fw_cx((float)min(gx0 + l, ow - 1), (float)min(oy, oh - 1)));
+    fw_c s = FW_PIXEL_MAP(block, min(gx0 + l, ow - 1), min(oy, oh - 1));
     pos_x[row + l] = s.re;
     pos_y[row + l] = s.im;
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -193,6 +204,26 @@ void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int 
     fw_fv sx = FW_VLOAD(pos_x + row + FW_VN * l), sy = FW_VLOAD(pos_y + row + FW_VN * l);
     fw_pxv v = fw_sample(src, w, h, sx, sy, cval);
     FW_STORE_PIXELS();
+}
+#endif
+
+#ifdef FW_COARSE
+/* The coarse pass: node (i, j)'s record (fw_coarse_node at output position
+ * (FW_COARSE_STEP i, FW_COARSE_STEP j)) into coarse, FW_COARSE_FLOATS
+ * floats a node, nodes row by row; padding work-items redo the last node. */
+__kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
+void coarse_pass(fw_block_t block, __global float *restrict coarse, int nx, int ny)
+{
+    int k = min((int)get_global_id(0), nx * ny - 1);
+    int i = k % nx, j = k / nx;
+    fw_seed_t rec = fw_coarse_node(block, fw_cx((float)(FW_COARSE_STEP * i), (float)(FW_COARSE_STEP * j)));
+    __global float *r = coarse + FW_COARSE_FLOATS * k;
+    r[0] = rec.x.re;
+    r[1] = rec.x.im;
+    r[2] = rec.a.re;
+    r[3] = rec.a.im;
+    r[4] = rec.b.re;
+    r[5] = rec.b.im;
 }
 #endif
 

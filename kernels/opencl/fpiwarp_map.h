@@ -272,12 +272,30 @@ FW_FN fw_c fw_seed_correction(fw_c t, fw_rows_t rows)
     return fw_add(bottom, fw_scale(fw_sub(top, bottom), ty));
 }
 
-FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters, float tol)
+/* A warp's coarse-pass seed of one pixel (fpiwarp/block/coarse.py): x0
+ * and the inverse Jacobian's Wirtinger parts a, b, interpolated from the
+ * nodes' records; x0 NaN: no seed. */
+typedef struct {
+    fw_c x, a, b;
+} fw_seed_t;
+
+/* seeded (a compile-time false outside a coarse warp): where the value of
+ * the spline at seed.x (no derivatives) lies within tol of the target, the
+ * answer is seed.x - (a r + b conj(r)), r the residual (reference.newton);
+ * elsewhere the loop below runs as without a seed */
+FW_FN fw_c fw_newton_seeded(fw_c target, fw_rows_t rows, int n, bool paired, int iters, float tol, bool seeded,
+                            fw_seed_t seed)
 {
     fw_c mu1 = fw_at(rows, FW_ROW_MU12, 0), mu2 = fw_at(rows, FW_ROW_MU12, 2), mu3 = fw_at(rows, FW_ROW_MU3, 0);
     fw_c x = fw_add(fw_rlinear(target, mu1, mu2, mu3), fw_seed_correction(target, rows));
     fw_c dz, dzb;
     bool done = false;
+    if (seeded) {
+        fw_c res = fw_sub(fw_tps_d(seed.x, rows, n, paired, false, &dz, &dzb), target);
+        done = sqrt(fw_abs2(res)) <= tol; /* NaN: false */
+        fw_c step = fw_add(fw_mul(seed.a, res), fw_mul(seed.b, fw_conj(res)));
+        x = fw_select(done, fw_sub(seed.x, step), x);
+    }
     for (int k = 0; k < iters && !done; ++k) {
         /* the seed is rarely within tol: its pass takes the derivatives at
          * once; a later pass checks the value first and takes them only
@@ -297,6 +315,12 @@ FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters,
     return fw_select(done, x, fw_cx(NAN, NAN));
 }
 
+FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters, float tol)
+{
+    fw_seed_t none = {{0.0f, 0.0f}, {0.0f, 0.0f}, {0.0f, 0.0f}};
+    return fw_newton_seeded(target, rows, n, paired, iters, tol, false, none);
+}
+
 /* region r of a stage: the deepest region containing z wins */
 FW_FN void fw_region(fw_rows_t rows, int r, fw_c z, float *best, fw_c *outside)
 {
@@ -308,10 +332,21 @@ FW_FN void fw_region(fw_rows_t rows, int r, fw_c z, float *best, fw_c *outside)
     *outside = fw_select(win, fw_add(fw_mul(a, z), b), *outside);
 }
 
+/* step 2 of a stage: the pre-Möbius (reference.pre_mobius) */
+FW_FN fw_c fw_pre(fw_rows_t rows, fw_c z)
+{
+    fw_c u = fw_sub(z, fw_at(rows, FW_ROW_PRE, 0));
+    return fw_div(fw_mul(fw_at(rows, FW_ROW_SCALE, 0), u), fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_PRE, 2), u)));
+}
+
 /* ---- one stage (reference.evaluate_stage) ------------------------------ */
 /* core, n, n_regions, iters: the stage's header row (compile-time
- * constants when the kind is known, so the unused branches fold away). */
-FW_FN fw_c fw_stage_kind(fw_rows_t rows, fw_c z, int core, int n, int n_regions, int iters)
+ * constants when the kind is known, so the unused branches fold away);
+ * seeded, seed: a Newton core's coarse-pass seed (fw_newton_seeded). */
+FW_FN fw_seed_t fw_coarse_seed(__global const float *coarse, int nx, int ny, int px, int py);
+
+FW_FN fw_c fw_stage_seeded(fw_rows_t rows, fw_c z, bool seeded, __global const float *coarse, int nx, int ny,
+                           int px, int py, int core, int n, int n_regions, int iters)
 {
     float best = 0.0f;
     fw_c outside = fw_cx(NAN, NAN);
@@ -327,21 +362,30 @@ FW_FN fw_c fw_stage_kind(fw_rows_t rows, fw_c z, int core, int n, int n_regions,
      * skipped there (the affine core stays branch-free, so vectorized) */
     if (n_regions > 0 && core != FW_CORE_AFFINE && best > 0.0f)
         return outside;
-    fw_c u = fw_sub(z, fw_at(rows, FW_ROW_PRE, 0));
-    fw_c p = fw_div(fw_mul(fw_at(rows, FW_ROW_SCALE, 0), u), fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_PRE, 2), u)));
+    fw_c p = fw_pre(rows, z);
     if (core == FW_CORE_AFFINE) {
         p = fw_rlinear(p, fw_at(rows, FW_ROW_L12, 0), fw_at(rows, FW_ROW_L12, 2), fw_at(rows, FW_ROW_L3, 0));
     } else if (core == FW_CORE_TPS || core == FW_CORE_TPS_PAIRS) {
         fw_c dz, dzb;
         p = fw_tps(p, rows, n, core == FW_CORE_TPS_PAIRS, &dz, &dzb);
     } else if (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE) {
-        p = fw_newton(p, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, iters, rows[4 * FW_ROW_L3 + 2]);
+        /* the seed is read here only: pixels a region takes never load it */
+        fw_seed_t seed = {{NAN, NAN}, {NAN, NAN}, {NAN, NAN}};
+        if (seeded)
+            seed = fw_coarse_seed(coarse, nx, ny, px, py);
+        p = fw_newton_seeded(p, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, iters, rows[4 * FW_ROW_L3 + 2], seeded,
+                             seed);
     } else { /* a core this kernel does not know: outside (the host refuses it first) */
         p = fw_cx(NAN, NAN);
     }
     fw_c w = fw_add(fw_at(rows, FW_ROW_POST, 2),
                     fw_div(fw_mul(fw_at(rows, FW_ROW_SCALE, 2), p), fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_POST, 0), p))));
     return fw_select(best > 0.0f, outside, w);
+}
+
+FW_FN fw_c fw_stage_kind(fw_rows_t rows, fw_c z, int core, int n, int n_regions, int iters)
+{
+    return fw_stage_seeded(rows, z, false, 0, 0, 0, 0, 0, core, n, n_regions, iters);
 }
 
 /* the rows of stage k of a block */
@@ -415,6 +459,81 @@ FW_FN fw_c fw_map(fw_block_t block, fw_c z)
 #define FW_APPLY(rows, ...) z = fw_stage_kind(rows, z, __VA_ARGS__)
     FW_FOR_EACH_STAGE(block, FW_APPLY)
 #undef FW_APPLY
+    return z;
+}
+
+/* ---- a warp's coarse pass (fpiwarp/block/coarse.py) --------------------- */
+/* The record (x, a, b) of the node at output position z: the stages before
+ * the block's first Newton core, then that core's solve from the table
+ * seed, its regions skipped (coarse.coarse_pass); x NaN where it fails or
+ * the inverse Jacobian is not finite. */
+FW_FN fw_seed_t fw_coarse_node(fw_block_t block, fw_c z)
+{
+    fw_seed_t rec = {{NAN, NAN}, {NAN, NAN}, {NAN, NAN}};
+    bool before = true; /* no Newton core yet (folds away with the kinds known) */
+#define FW_APPLY_NODE(rows, core, n, n_regions, iters)                                                  \
+    if (before && (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE)) {                 \
+        bool paired = core == FW_CORE_TPS_PAIRS_INVERSE;                                                \
+        fw_c x = fw_newton(fw_pre(rows, z), rows, n, paired, iters, rows[4 * FW_ROW_L3 + 2]), dz, dzb;  \
+        fw_tps(x, rows, n, paired, &dz, &dzb);                                                          \
+        float inv = 1.0f / (fw_abs2(dz) - fw_abs2(dzb));                                                \
+        rec.a = fw_scale(fw_conj(dz), inv);                                                             \
+        rec.b = fw_scale(dzb, -inv);                                                                    \
+        bool ok = isfinite(x.re) && isfinite(x.im) && isfinite(rec.a.re) && isfinite(rec.a.im) &&       \
+                  isfinite(rec.b.re) && isfinite(rec.b.im);                                             \
+        rec.x = fw_select(ok, x, fw_cx(NAN, NAN));                                                      \
+        before = false;                                                                                 \
+    } else if (before) {                                                                                \
+        z = fw_stage_kind(rows, z, core, n, n_regions, iters);                                          \
+    }
+    FW_FOR_EACH_STAGE(block, FW_APPLY_NODE)
+#undef FW_APPLY_NODE
+    return rec;
+}
+
+/* node k's record from the coarse buffer (FW_COARSE_FLOATS floats a node) */
+FW_FN fw_seed_t fw_coarse_record(__global const float *coarse, int k)
+{
+    __global const float *r = coarse + FW_COARSE_FLOATS * k;
+    fw_seed_t rec = {{r[0], r[1]}, {r[2], r[3]}, {r[4], r[5]}};
+    return rec;
+}
+
+FW_FN fw_c fw_lerp(fw_c a, fw_c b, float t)
+{
+    return fw_add(a, fw_scale(fw_sub(b, a), t));
+}
+
+/* output pixel (px, py)'s seed: its four nodes' records, bilinearly
+ * (coarse.pixel_seeds); nx, ny nodes a row, rows */
+FW_FN fw_seed_t fw_coarse_seed(__global const float *coarse, int nx, int ny, int px, int py)
+{
+    int i = min(px / FW_COARSE_STEP, nx - 2), j = min(py / FW_COARSE_STEP, ny - 2);
+    float fx = (float)(px - FW_COARSE_STEP * i) / (float)FW_COARSE_STEP;
+    float fy = (float)(py - FW_COARSE_STEP * j) / (float)FW_COARSE_STEP;
+    fw_seed_t r00 = fw_coarse_record(coarse, j * nx + i), r01 = fw_coarse_record(coarse, j * nx + i + 1);
+    fw_seed_t r10 = fw_coarse_record(coarse, (j + 1) * nx + i), r11 = fw_coarse_record(coarse, (j + 1) * nx + i + 1);
+    fw_seed_t s;
+    s.x = fw_lerp(fw_lerp(r00.x, r01.x, fx), fw_lerp(r10.x, r11.x, fx), fy);
+    s.a = fw_lerp(fw_lerp(r00.a, r01.a, fx), fw_lerp(r10.a, r11.a, fx), fy);
+    s.b = fw_lerp(fw_lerp(r00.b, r01.b, fx), fw_lerp(r10.b, r11.b, fx), fy);
+    return s;
+}
+
+/* fw_map of output pixel (px, py) with its coarse seed (nx x ny nodes'
+ * records in coarse) for the block's first Newton core */
+FW_FN fw_c fw_map_seeded(fw_block_t block, __global const float *coarse, int nx, int ny, int px, int py)
+{
+    fw_c z = fw_cx((float)px, (float)py);
+    bool first = true;
+#define FW_APPLY_SEEDED(rows, core, n, n_regions, iters)                                     \
+    {                                                                                        \
+        bool newton = core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE;      \
+        z = fw_stage_seeded(rows, z, first && newton, coarse, nx, ny, px, py, core, n, n_regions, iters); \
+        first = first && !newton;                                                            \
+    }
+    FW_FOR_EACH_STAGE(block, FW_APPLY_SEEDED)
+#undef FW_APPLY_SEEDED
     return z;
 }
 

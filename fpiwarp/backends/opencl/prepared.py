@@ -19,9 +19,11 @@ packed and checked once, and each kind of call keeps its job.
 
 import numpy as np
 
+from ...block.coarse import coarse_shape
+from ...block.layout import COARSE_FLOATS
 from ...errors import SizeLimitError
 from ..lru import LruCache
-from .tiles import global_size, tiled_program
+from .tiles import global_size, has_newton, tiled_program
 
 #: Bytes allocated past an uploaded source image: sampling reads a pixel of
 #: up to 4 bytes as one 32-bit word, which stays inside any image of 4 bytes
@@ -31,6 +33,10 @@ IMAGE_SLACK = 4
 #: out: wrapping each new output array in a buffer (zero copy) costs about
 #: a millisecond of driver set-up per call on PoCL, more than the copy.
 ZERO_COPY_MIN_BYTES = 1 << 20
+#: A Newton map's warp runs the coarse pass (fpiwarp/block/coarse.py) first;
+#: False: each pixel solves alone (read when a job is made: benchmarks
+#: compare the two, benchmarks/local_speed.py).
+COARSE_PASS = True
 #: Jobs kept per backend (plain calls) and per bound map, least recently used dropped.
 MAX_JOBS = 4
 
@@ -65,6 +71,10 @@ class ClJob:
             raise SizeLimitError(f"image too large for the opencl backend: {h}x{w}x{c} -> {oh}x{ow}x{c}")
         self.out_shape, self.dtype = (oh, ow, c), image.dtype
         name, options, self._local = tiled_program(be, image.dtype, c, order, mode, ow, antialias, kind)
+        #: a Newton map's coarse pass (fpiwarp/block/coarse.py): its kernel, the records' buffer
+        self._coarse = None
+        if COARSE_PASS and not antialias and has_newton(kind):
+            options = (*options, "-DFW_COARSE=1")
         program = be.kernel(name, options).program
         self._kernel = cl.Kernel(program, name)  # its own: arguments stay set between calls
         self._global = global_size(self._local, (oh, ow))
@@ -81,8 +91,15 @@ class ClJob:
         cval4 = np.zeros(1, dtype=cl.cltypes.float4)
         for i, v in enumerate(cval):
             cval4[0][i] = v
-        self._kernel.set_args(None, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh),
-                              cval4[0])
+        args = [None, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), cval4[0]]
+        if "-DFW_COARSE=1" in options:
+            ny, nx = coarse_shape(ow, oh)
+            self._records = cl.Buffer(be.context, mf.READ_WRITE, 4 * COARSE_FLOATS * nx * ny)
+            self._coarse = cl.Kernel(program, "coarse_pass")
+            self._coarse.set_args(None, self._records, np.int32(nx), np.int32(ny))
+            self._coarse_global = (-(-nx * ny // self._local[0]) * self._local[0],)
+            args += [self._records, np.int32(nx), np.int32(ny)]
+        self._kernel.set_args(*args)
 
     def set_block(self, block):
         """Point the kernel at float32 ``block``, uploaded only when its
@@ -95,6 +112,8 @@ class ClJob:
         if self._block is None or self._block.size != max(block.nbytes, 4):
             self._block = cl.Buffer(be.context, cl.mem_flags.READ_ONLY, max(block.nbytes, 4))
             self._kernel.set_arg(0, self._block)
+            if self._coarse is not None:
+                self._coarse.set_arg(0, self._block)
         cl.enqueue_copy(be.queue, self._block, block, is_blocking=False)
         self._block_bytes = data
 
@@ -112,6 +131,8 @@ class ClJob:
         if self._zero_copy:  # the kernel writes `out` itself
             dst = cl.Buffer(be.context, cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=out)
             self._kernel.set_arg(4, dst)
+        if self._coarse is not None:  # the queue is in order: the records are written before the warp reads them
+            cl.enqueue_nd_range_kernel(queue, self._coarse, self._coarse_global, (self._local[0],))
         cl.enqueue_nd_range_kernel(queue, self._kernel, self._global, self._local)
         if self._zero_copy:
             mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out.shape, out.dtype)
