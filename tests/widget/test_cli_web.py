@@ -19,7 +19,7 @@ def test_web_screenshot_is_the_warped_picture(chromium, tmp_path, capsys):
                  "--edges", "0,2"]) == 0
     frame = io.read_image(out)
     f = fpiwarp.LocalDeformation([[0, 0], [79, 0], [79, 59], [0, 59]], np.array(DST.split(","), float).reshape(4, 2),
-                                 edges=(0, 2))
+                                 edges=(0, 2)).for_picture(80, 60)  # the picture's extent, as fpiwarp warp's
     ref = fpiwarp.warp_image(img, f, backend="numpy")
     assert frame.shape == img.shape
     assert np.mean(np.abs(frame.astype(int) - ref).max(-1) <= 2) >= 0.99

@@ -81,7 +81,7 @@ def test_clicking_two_edges_builds_the_python_local_deformation(page, session):
     assert session.editor.edges == [0, 2]
     built = session.transform
     assert isinstance(built, LocalDeformation)
-    expected = LocalDeformation(SRC, DST, edges=(0, 2))
+    expected = LocalDeformation(SRC, DST, edges=(0, 2), extent=(W, H))  # the picture's, as fpiwarp warp's
     np.testing.assert_array_equal(built.params(), expected.params())
     assert _js(driver, "return ed.state.edges;") == [0, 2]
     # the page draws the block of that map: its frame is the numpy warp of it

@@ -39,9 +39,23 @@ def test_page_messages_change_traits_and_map():
     for k in (1, 3):
         w._on_page_message(w, {"type": "edge", "index": k}, [])
     assert w.edges == [1, 3]
-    np.testing.assert_array_equal(w.transform.params(), LocalDeformation(SRC, w.dst, edges=(1, 3)).params())
+    # continuous over the picture, as fpiwarp warp builds it
+    np.testing.assert_array_equal(w.transform.params(),
+                                  LocalDeformation(SRC, w.dst, edges=(1, 3)).for_picture(W, H).params())
     with pytest.raises(Exception, match="read-only"):
         w.K = 2.0
+
+
+def test_a_local_deformation_given_is_made_continuous_over_the_picture():
+    """As fpiwarp warp builds it: the picture's extent, unless it has its own."""
+    from fpiwarp.widget.session import Session
+
+    given = LocalDeformation(SRC, DST, edges=(0, 2))
+    w = WarpWidget(picture(), transform=given)
+    np.testing.assert_array_equal(w.transform.params(), given.for_picture(W, H).params())
+    assert not np.array_equal(w.transform.params(), given.params())
+    own = LocalDeformation(SRC, DST, edges=(0, 2), extent=(-10, -10, 2 * W, 2 * H))
+    assert Session(picture(), own).transform is own
 
 
 def test_python_traits_rebuild_the_map_and_bad_ones_keep_it():
