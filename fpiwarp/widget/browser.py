@@ -71,8 +71,14 @@ def launch(size=(1280, 800)):
 
 def open_page(driver, url, timeout=60):
     """Load the editor page and wait until it drew its first frame."""
-    driver.set_script_timeout(timeout)
     driver.get(url)
+    return wait_drawn(driver, timeout)
+
+
+def wait_drawn(driver, timeout=60):
+    """Wait until the page's editor (the --web page's, or a notebook
+    widget's) drew its first frame and is idle."""
+    driver.set_script_timeout(timeout)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         ready = driver.execute_script(
@@ -102,6 +108,45 @@ def capture(driver, *, overlays=False, fmt="rgba8", width=None, height=None, vie
     data = base64.b64decode(out["data"])
     dtype = np.float32 if fmt == "float" else np.uint8
     return np.frombuffer(data, dtype).reshape(out["height"], out["width"], 4).copy()
+
+
+def drag(driver, start, moves, *, duration=10):
+    """A real pointer drag on the editor's overlay canvas (Selenium's
+    ActionChains: pointerdown, pointermoves, pointerup): press at canvas CSS
+    pixel ``start``, move by each (dx, dy) of ``moves``, release; returns
+    where the pointer was released (canvas CSS pixels)."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    canvas = overlay_canvas(driver)
+    w, h = canvas.size["width"], canvas.size["height"]
+    x, y = int(round(start[0])), int(round(start[1]))
+    chain = ActionChains(driver, duration=duration).move_to_element_with_offset(
+        canvas, int(round(x - w / 2)), int(round(y - h / 2))).click_and_hold()
+    for dx, dy in moves:
+        chain = chain.move_by_offset(int(dx), int(dy))
+        x, y = x + int(dx), y + int(dy)
+    chain.release().perform()
+    return x, y
+
+
+def click(driver, at):
+    """A real click at canvas CSS pixel ``at`` of the overlay canvas."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    canvas = overlay_canvas(driver)
+    w, h = canvas.size["width"], canvas.size["height"]
+    ActionChains(driver, duration=10).move_to_element_with_offset(
+        canvas, int(round(at[0] - w / 2)), int(round(at[1] - h / 2))).click().perform()
+
+
+def overlay_canvas(driver):
+    """The editor's overlay canvas (where the pointer events go), scrolled
+    into the middle of the window."""
+    from selenium.webdriver.common.by import By
+
+    canvas = driver.find_element(By.CSS_SELECTOR, ".fpw-overlay")
+    driver.execute_script("arguments[0].scrollIntoView({block: 'center', inline: 'center'});", canvas)
+    return canvas
 
 
 def console_problems(driver):

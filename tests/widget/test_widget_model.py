@@ -165,17 +165,10 @@ def bridged(chromium):
 
 
 def test_widget_front_end_drag_changes_dst_and_k(bridged):
-    from selenium.webdriver.common.action_chains import ActionChains
-    from selenium.webdriver.common.by import By
-
     driver, w = bridged
     k0 = w.K
     start = driver.execute_script("return window.fpiwarpEditor.toScreen(window.fpiwarpEditor.state.dst[0]);")
-    canvas = driver.find_element(By.CSS_SELECTOR, ".fpw-overlay")
-    cw, ch = canvas.size["width"], canvas.size["height"]
-    ActionChains(driver, duration=10).move_to_element_with_offset(
-        canvas, int(round(start[0] - cw / 2)), int(round(start[1] - ch / 2))).click_and_hold().move_by_offset(
-        30, 20).move_by_offset(10, 10).release().perform()
+    browser.drag(driver, start, [(30, 20), (10, 10)])
     browser.wait_idle(driver)
     assert w.dst[0] != DST[0] and w.dst[1:] == DST[1:]
     assert w.K != k0 and w.K == pytest.approx(FPI(SRC, w.dst).K)
