@@ -30,6 +30,11 @@ FLAGS = (
     "--disable-domain-reliability", "--disable-client-side-phishing-detection", "--metrics-recording-only",
     "--hide-scrollbars", "--mute-audio",
 )
+#: screenshot()'s window: the frame is captured at the display texture's
+#: size whatever the window's, and the page also draws what it shows, per
+#: pixel, at the window's size (on SwiftShader seconds for a local
+#: deformation at 1280 x 800): keep that small.
+SCREENSHOT_WINDOW = (320, 240)
 INSTALL_HINT = "apt-get install chromium chromium-driver; pip install selenium"
 
 
@@ -164,7 +169,7 @@ def screenshot(session, *, overlays=True, timeout=60):
 
     c = session.image.shape[2]
     with PageServer(session) as server:
-        driver = launch()
+        driver = launch(size=SCREENSHOT_WINDOW)
         try:
             open_page(driver, server.url, timeout)
             w, h = session.state()["image"]["display"]

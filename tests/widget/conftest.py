@@ -36,6 +36,13 @@ def _unavailable(reason, what="chromium"):
     pytest.skip(reason)
 
 
+#: The shared browser's window: small, since each frame the page shows is
+#: drawn per pixel at the window's size on SwiftShader (a local
+#: deformation's Newton inverse: seconds at 900 x 700 on two loaded cores);
+#: the frames compared are captured at the picture's size whatever it is.
+WINDOW = (640, 480)
+
+
 @pytest.fixture(scope="session")
 def chromium():
     """A headless Chromium (selenium WebDriver), shared by the browser tests."""
@@ -43,7 +50,7 @@ def chromium():
     from fpiwarp.widget import browser
 
     try:
-        driver = browser.launch(size=(900, 700))
+        driver = browser.launch(size=WINDOW)
     except FpiwarpError as exc:
         _unavailable(f"headless chromium unavailable: {exc}")
     yield driver

@@ -26,7 +26,7 @@ from fpiwarp.widget import WarpWidget
 
 y, x = np.mgrid[0:{H}, 0:{W}]
 img = np.stack([x * 3, y * 4, (x // 10 + y // 10) % 2 * 255], -1).astype(np.uint8)
-w = WarpWidget(img, dst={DST}, height=300)
+w = WarpWidget(img, dst={DST}, height=240)
 w"""
 #: What the kernel sees, written to a file each time the cell runs.
 REPORT = """n = globals().get("n", 0) + 1
@@ -34,6 +34,9 @@ with open(f"state-{n}.json", "w") as fh:
     json.dump({"src": w.src, "dst": w.dst, "K": w.K, "edges": w.edges}, fh)"""
 #: Bounds of the steps in the browser (the whole test takes ~20-30 s).
 OPEN_S, RUN_S = 60, 60
+#: The lab's window (its side bars and toolbars need room; the shared
+#: browser's is smaller), restored after the test.
+LAB_WINDOW = (1000, 700)
 
 RUN_CELL = """
 const [index, done] = [arguments[0], arguments[arguments.length - 1]];
@@ -77,8 +80,16 @@ def _report(lab, n, timeout=RUN_S):
                   json.loads(path.read_text(encoding="utf-8")), timeout, lab)
 
 
-def test_drag_in_jupyterlab_changes_dst_and_k_in_the_kernel(jupyterlab, chromium):
-    lab, driver = jupyterlab, chromium
+@pytest.fixture
+def lab_window(chromium):
+    size = chromium.get_window_size()
+    chromium.set_window_size(*LAB_WINDOW)
+    yield chromium
+    chromium.set_window_size(size["width"], size["height"])
+
+
+def test_drag_in_jupyterlab_changes_dst_and_k_in_the_kernel(jupyterlab, lab_window):
+    lab, driver = jupyterlab, lab_window
     _notebook(lab.root / "warp.ipynb")
     driver.set_script_timeout(RUN_S)
     driver.get(lab.url("/lab/tree/warp.ipynb"))
