@@ -96,6 +96,15 @@ def wait_drawn(driver, timeout=60):
     raise BackendUnavailableError(f"the page drew nothing within {timeout} s")
 
 
+def show(driver, server, session):
+    """Serve ``session`` from ``server`` (a PageServer whose page the
+    driver has open) instead, and wait until the page reloaded and drew it."""
+    with server.lock:
+        server.session = session
+    driver.execute_async_script("window.fpiwarpEditor.reload().then(() => window.fpiwarpEditor.whenIdle())"
+                                ".then(arguments[arguments.length - 1]);")
+
+
 def wait_idle(driver):
     """Wait until every message the page sent was answered and drawn."""
     return driver.execute_async_script("window.fpiwarpEditor.whenIdle().then(arguments[arguments.length - 1]);")

@@ -57,36 +57,22 @@ def chromium():
     driver.quit()
 
 
-class SwappableSession:
-    """Serves whatever session the test puts in ``.current``."""
-
-    def __init__(self, session):
-        self.current = session
-
-    def __getattr__(self, name):
-        return getattr(self.current, name)
-
-
 @pytest.fixture(scope="module")
 def page(chromium):
-    """(driver, server): the editor page loaded from a PageServer whose
-    session a test sets with ``show(session)``."""
+    """(driver, server, show): the editor page loaded from a PageServer
+    whose session a test sets with ``show(session)``."""
     from fpiwarp import FPI
     from fpiwarp.widget import browser
     from fpiwarp.widget.server import PageServer
     from fpiwarp.widget.session import Session
 
     img = np.zeros((8, 8, 3), np.uint8)
-    holder = SwappableSession(Session(img, FPI([[0, 0], [7, 0], [7, 7], [0, 7]], [[0, 0], [7, 0], [7, 7], [0, 7]])))
-    server = PageServer(holder).start()
+    server = PageServer(Session(img, FPI([[0, 0], [7, 0], [7, 7], [0, 7]], [[0, 0], [7, 0], [7, 7], [0, 7]]))).start()
     browser.open_page(chromium, server.url)
     chromium.get_log("browser")  # start each module with an empty console
 
     def show(session):
-        holder.current = session
-        chromium.execute_async_script(
-            "window.fpiwarpEditor.reload().then(() => window.fpiwarpEditor.whenIdle())"
-            ".then(arguments[arguments.length - 1]);")
+        browser.show(chromium, server, session)
 
     yield chromium, server, show
     server.close()
