@@ -129,13 +129,8 @@ def drag(driver, start, moves, *, duration=10):
     ActionChains: pointerdown, pointermoves, pointerup): press at canvas CSS
     pixel ``start``, move by each (dx, dy) of ``moves``, release; returns
     where the pointer was released (canvas CSS pixels)."""
-    from selenium.webdriver.common.action_chains import ActionChains
-
-    canvas = overlay_canvas(driver)
-    w, h = canvas.size["width"], canvas.size["height"]
-    x, y = int(round(start[0])), int(round(start[1]))
-    chain = ActionChains(driver, duration=duration).move_to_element_with_offset(
-        canvas, int(round(x - w / 2)), int(round(y - h / 2))).click_and_hold()
+    chain, (x, y) = _pointer_at(driver, start, duration)
+    chain = chain.click_and_hold()
     for dx, dy in moves:
         chain = chain.move_by_offset(int(dx), int(dy))
         x, y = x + int(dx), y + int(dy)
@@ -145,12 +140,20 @@ def drag(driver, start, moves, *, duration=10):
 
 def click(driver, at):
     """A real click at canvas CSS pixel ``at`` of the overlay canvas."""
+    _pointer_at(driver, at)[0].click().perform()
+
+
+def _pointer_at(driver, at, duration=10):
+    """(an action chain with the pointer at canvas CSS pixel ``at``, that
+    pixel rounded)."""
     from selenium.webdriver.common.action_chains import ActionChains
 
     canvas = overlay_canvas(driver)
     w, h = canvas.size["width"], canvas.size["height"]
-    ActionChains(driver, duration=10).move_to_element_with_offset(
-        canvas, int(round(at[0] - w / 2)), int(round(at[1] - h / 2))).click().perform()
+    x, y = int(round(at[0])), int(round(at[1]))
+    chain = ActionChains(driver, duration=duration).move_to_element_with_offset(
+        canvas, int(round(x - w / 2)), int(round(y - h / 2)))
+    return chain, (x, y)
 
 
 def overlay_canvas(driver):
