@@ -13,6 +13,11 @@ distortion), "per pixel" the exact path. Rounds alternate browser and
 desktop so that load from other processes hits both alike; figures are
 medians of the rounds.
 
+Parity, in the same browser: the share of pixels of the page's frame
+within 2 levels of warp_image(..., backend="numpy"), for the maps, orders
+and pictures of tests/widget/test_page_parity.py (the test's own
+measurement, ``shares``), in a 640×480 window.
+
 Usage::
 
     python benchmarks/browser_preview.py [--rounds 3] [--out benchmarks/results/browser.md]
@@ -87,6 +92,26 @@ def desktop_round(editor, renderer, ctx, fbo, n, method):
 
 
 
+def parity_rows(driver):
+    """[(map, order, dtype, {what: share})] of tests/widget/test_page_parity.py."""
+    from fpiwarp.widget import browser
+    from fpiwarp.widget.server import PageServer
+    from fpiwarp.widget.session import Session
+    from tests.widget.test_page_parity import MAPS, picture, shares
+
+    rows = []
+    driver.set_window_size(640, 480)
+    with PageServer(Session(picture(np.uint8), MAPS["fpi"]())) as server:
+        browser.open_page(driver, server.url, timeout=300)
+        for dtype in (np.uint8, np.uint16):
+            for name in MAPS:
+                for order in (0, 1, 3):
+                    got = shares(driver, lambda s: browser.show(driver, server, s), name, order, dtype)
+                    rows.append((name, order, np.dtype(dtype).name, got))
+                    print(rows[-1], flush=True)
+    return rows
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=3)
@@ -132,6 +157,7 @@ def main(argv=None):
             med = statistics.median
             rows.append((name, med(b_drag), med(b_draw), med(d_drag), med(d_pixel)))
             print(rows[-1], flush=True)
+        parity = parity_rows(driver)
     finally:
         driver.quit()
         fbo.release()
@@ -162,6 +188,19 @@ def main(argv=None):
         "The desktop viewer drags maps of non-constant distortion (the LocalDeformation) by the mesh path; "
         "the page always draws per pixel (WebGL2 has no clip distances for the mesh path's pole culling), "
         "so compare its drag with the desktop's per-pixel column for those.",
+        "",
+        "Parity, same run: share of the page's pixels within 2 levels of `warp_image(..., backend=\"numpy\")` "
+        "(tests/widget/test_page_parity.py's pictures, 72×54; the test asks for 0.99 everywhere). uint16: "
+        "*levels* are the 16-bit values (the program into a float target), *shown* the 8-bit canvas.",
+        "",
+        "| map | order | uint8 | uint16 levels | uint16 shown |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    by = {(m, o, d): got for m, o, d, got in parity}
+    for m, o in dict.fromkeys((m, o) for m, o, _, _ in parity):
+        u8, u16 = by[(m, o, "uint8")], by[(m, o, "uint16")]
+        lines.append(f"| {m} | {o} | {u8['shown']:.4f} | {u16['levels']:.4f} | {u16['shown']:.4f} |")
+    lines += [
         "",
         machine_markdown(info),
         "",

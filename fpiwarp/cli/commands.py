@@ -37,6 +37,7 @@ from ..batch.images import BatchSummary, Progress, list_inputs, run_batch
 from ..errors import BackendUnavailableError, FpiwarpError, MissingDependencyError, OutputExistsError
 from ..io.images import ORIENTATIONS, check_writable, read_image, write_image
 from ..maps.fpi import FPI
+from ..maps.local import on_picture
 from ..metrics import grid
 from ..sampling.sampler import MODES, ORDERS
 from ..spec import load_spec
@@ -99,9 +100,8 @@ def cmd_warp(args):
     check_output_path(args.input, args.output, args.overwrite)
     image, info = read_image(args.input, orientation=args.orientation, with_info=True, damaged=_damaged(args))
     check_writable(args.output, image.dtype, 1 if image.ndim == 2 else image.shape[2], info)
-    if hasattr(transform, "for_picture"):  # a local deformation: continuous over this picture and the output
-        out_h, out_w = output_shape or image.shape[:2]
-        transform = transform.for_picture(max(image.shape[1], out_w), max(image.shape[0], out_h))
+    out_h, out_w = output_shape or image.shape[:2]  # a local deformation: continuous over this picture and the output
+    transform = on_picture(transform, max(image.shape[1], out_w), max(image.shape[0], out_h))
     warped = warp_image(
         image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend,
         antialias=args.antialias,

@@ -221,6 +221,16 @@ def extended_quads(z, w, edges, kind, box):
     return zz, ww, pins
 
 
+def on_picture(transform, width, height):
+    """``transform`` continuous over the picture (0, 0)-(width, height):
+    a :class:`LocalDeformation` of the default extent is rebuilt with that
+    extent (:meth:`LocalDeformation.for_picture`); any other map, and one
+    given its own extent, is returned as it is. What ``fpiwarp warp``, the
+    viewer's and the widget's editor do with the picture they warp."""
+    fit = getattr(transform, "for_picture", None)
+    return transform if fit is None else fit(width, height)
+
+
 class LocalDeformation(Transform):
     """Constrained FPI inside the region of interest, similarities outside.
 

@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import BackendUnavailableError, DegenerateQuadError
 from ..io.images import write_image
 from ..maps.fpi import FPI
+from ..maps.local import on_picture
 from ..maps.transform import Compound
 from ..spec import save_spec
 from .renderer import Renderer
@@ -85,6 +86,9 @@ class Editor:
             self.prefix, last = list(transform.steps[:-1]), transform.steps[-1]
         if last is None:
             last = FPI(corners, corners)
+        #: The picture's extent: a local deformation is continuous over it (as ``fpiwarp warp`` builds it).
+        self.extent = (w, h)
+        last = on_picture(last, *self.extent)
         self.editable = hasattr(last, "src") and hasattr(last, "dst") and type(last).__name__ in (
             "FPI", "LocalDeformation")
         self.src = np.asarray(getattr(last, "src", corners), dtype=np.float64).copy()
@@ -112,7 +116,7 @@ class Editor:
         if len(self.edges) == 2:
             from ..maps.local import LocalDeformation
 
-            return LocalDeformation(self.src, self.dst, edges=tuple(self.edges))
+            return LocalDeformation(self.src, self.dst, edges=tuple(self.edges), extent=self.extent)
         return FPI(self.src, self.dst)
 
     def _apply(self, last):

@@ -30,6 +30,11 @@ FLAGS = (
     "--disable-domain-reliability", "--disable-client-side-phishing-detection", "--metrics-recording-only",
     "--hide-scrollbars", "--mute-audio",
 )
+#: screenshot()'s window: the frame is captured at the display texture's
+#: size whatever the window's, and the page also draws what it shows, per
+#: pixel, at the window's size (on SwiftShader seconds for a local
+#: deformation at 1280 x 800): keep that small.
+SCREENSHOT_WINDOW = (320, 240)
 INSTALL_HINT = "apt-get install chromium chromium-driver; pip install selenium"
 
 
@@ -71,8 +76,14 @@ def launch(size=(1280, 800)):
 
 def open_page(driver, url, timeout=60):
     """Load the editor page and wait until it drew its first frame."""
-    driver.set_script_timeout(timeout)
     driver.get(url)
+    return wait_drawn(driver, timeout)
+
+
+def wait_drawn(driver, timeout=60):
+    """Wait until the page's editor (the --web page's, or a notebook
+    widget's) drew its first frame and is idle."""
+    driver.set_script_timeout(timeout)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         ready = driver.execute_script(
@@ -83,6 +94,15 @@ def open_page(driver, url, timeout=60):
             return wait_idle(driver)
         time.sleep(0.05)
     raise BackendUnavailableError(f"the page drew nothing within {timeout} s")
+
+
+def show(driver, server, session):
+    """Serve ``session`` from ``server`` (a PageServer whose page the
+    driver has open) instead, and wait until the page reloaded and drew it."""
+    with server.lock:
+        server.session = session
+    driver.execute_async_script("window.fpiwarpEditor.reload().then(() => window.fpiwarpEditor.whenIdle())"
+                                ".then(arguments[arguments.length - 1]);")
 
 
 def wait_idle(driver):
@@ -104,6 +124,48 @@ def capture(driver, *, overlays=False, fmt="rgba8", width=None, height=None, vie
     return np.frombuffer(data, dtype).reshape(out["height"], out["width"], 4).copy()
 
 
+def drag(driver, start, moves, *, duration=10):
+    """A real pointer drag on the editor's overlay canvas (Selenium's
+    ActionChains: pointerdown, pointermoves, pointerup): press at canvas CSS
+    pixel ``start``, move by each (dx, dy) of ``moves``, release; returns
+    where the pointer was released (canvas CSS pixels)."""
+    chain, (x, y) = _pointer_at(driver, start, duration)
+    chain = chain.click_and_hold()
+    for dx, dy in moves:
+        chain = chain.move_by_offset(int(dx), int(dy))
+        x, y = x + int(dx), y + int(dy)
+    chain.release().perform()
+    return x, y
+
+
+def click(driver, at):
+    """A real click at canvas CSS pixel ``at`` of the overlay canvas."""
+    _pointer_at(driver, at)[0].click().perform()
+
+
+def _pointer_at(driver, at, duration=10):
+    """(an action chain with the pointer at canvas CSS pixel ``at``, that
+    pixel rounded)."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    canvas = overlay_canvas(driver)
+    w, h = canvas.size["width"], canvas.size["height"]
+    x, y = int(round(at[0])), int(round(at[1]))
+    chain = ActionChains(driver, duration=duration).move_to_element_with_offset(
+        canvas, int(round(x - w / 2)), int(round(y - h / 2)))
+    return chain, (x, y)
+
+
+def overlay_canvas(driver):
+    """The editor's overlay canvas (where the pointer events go), scrolled
+    into the middle of the window."""
+    from selenium.webdriver.common.by import By
+
+    canvas = driver.find_element(By.CSS_SELECTOR, ".fpw-overlay")
+    driver.execute_script("arguments[0].scrollIntoView({block: 'center', inline: 'center'});", canvas)
+    return canvas
+
+
 def console_problems(driver):
     """Browser console entries of level WARNING or worse (WebGL warnings,
     script errors)."""
@@ -119,7 +181,7 @@ def screenshot(session, *, overlays=True, timeout=60):
 
     c = session.image.shape[2]
     with PageServer(session) as server:
-        driver = launch()
+        driver = launch(size=SCREENSHOT_WINDOW)
         try:
             open_page(driver, server.url, timeout)
             w, h = session.state()["image"]["display"]

@@ -140,3 +140,22 @@ def test_the_block_evaluates_the_continuous_construction_like_the_host():
     assert np.abs(evaluate(f.params(), p, np.float32) - f(p)).max() < 2e-2  # px, float32
     q = f(p)
     assert np.abs(evaluate(f.inverse.params(), q, np.float32) - p).max() < 2e-2
+
+
+def test_on_picture_gives_the_default_extent_the_pictures_and_keeps_the_rest():
+    """The one helper of fpiwarp warp and the editors: a LocalDeformation of
+    the default extent is rebuilt over the picture; one with its own extent,
+    the paper's construction and any other map come back as they are."""
+    from fpiwarp.maps.local import on_picture
+
+    f = LocalDeformation(ISSUE_SRC, ISSUE_DST, edges=(0, 1))
+    fitted = on_picture(f, 512, 400)
+    np.testing.assert_array_equal(fitted.params(),
+                                  LocalDeformation(ISSUE_SRC, ISSUE_DST, edges=(0, 1), extent=(512, 400)).params())
+    assert not np.array_equal(fitted.params(), f.params())
+    assert on_picture(fitted, 100, 100) is fitted  # an extent of its own is kept
+    paper = LocalDeformation(ISSUE_SRC, ISSUE_DST, edges=(0, 1), construction="paper")
+    fpi = fpiwarp.FPI(ISSUE_SRC, ISSUE_DST)
+    assert on_picture(paper, 512, 400) is paper and on_picture(fpi, 512, 400) is fpi
+    inverse = f.inverse  # derived: no settings to rebuild from
+    assert on_picture(inverse, 512, 400) is inverse

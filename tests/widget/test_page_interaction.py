@@ -33,28 +33,12 @@ def _js(driver, script, *args):
     return driver.execute_script("const ed = window.fpiwarpEditor; " + script, *args)
 
 
-def _at(driver, css_xy):
-    """An action chain with the pointer at canvas CSS pixel css_xy."""
-    from selenium.webdriver.common.action_chains import ActionChains
-    from selenium.webdriver.common.by import By
-
-    canvas = driver.find_element(By.CSS_SELECTOR, ".fpw-overlay")
-    w, h = canvas.size["width"], canvas.size["height"]
-    return ActionChains(driver, duration=10).move_to_element_with_offset(
-        canvas, int(round(css_xy[0] - w / 2)), int(round(css_xy[1] - h / 2)))
-
-
 def test_dragging_a_handle_moves_dst_and_k_in_python(page, session):
     driver = page[0]
     k0 = session.editor.K
     start = _js(driver, "return ed.toScreen(ed.state.dst[2]);")
-    steps = [(8, 5)] * 6  # 48 x 30 CSS pixels, in six moves
-    chain = _at(driver, start).click_and_hold()
-    for dx, dy in steps:
-        chain = chain.move_by_offset(dx, dy)
-    chain.release().perform()
+    end = browser.drag(driver, start, [(8, 5)] * 6)  # 48 x 30 CSS pixels, in six moves
     browser.wait_idle(driver)
-    end = (round(start[0]) + sum(d[0] for d in steps), round(start[1]) + sum(d[1] for d in steps))
     expected = _js(driver, "return ed.toOutput(arguments[0], arguments[1]);", *end)
     got = session.editor.dst[2]
     assert np.allclose(got, expected, atol=0.51 * _js(driver, "return (ed.view[2] - ed.view[0]) / 100;")), (
@@ -69,7 +53,7 @@ def test_dragging_a_handle_moves_dst_and_k_in_python(page, session):
 
 def _click_edge(driver, k):
     mid = _js(driver, "const c = ed.state.curves[arguments[0]]; return ed.toScreen(c[c.length >> 1]);", k)
-    _at(driver, mid).click().perform()
+    browser.click(driver, mid)
     browser.wait_idle(driver)
 
 
@@ -81,7 +65,7 @@ def test_clicking_two_edges_builds_the_python_local_deformation(page, session):
     assert session.editor.edges == [0, 2]
     built = session.transform
     assert isinstance(built, LocalDeformation)
-    expected = LocalDeformation(SRC, DST, edges=(0, 2))
+    expected = LocalDeformation(SRC, DST, edges=(0, 2), extent=(W, H))  # the picture's, as fpiwarp warp's
     np.testing.assert_array_equal(built.params(), expected.params())
     assert _js(driver, "return ed.state.edges;") == [0, 2]
     # the page draws the block of that map: its frame is the numpy warp of it

@@ -39,9 +39,23 @@ def test_page_messages_change_traits_and_map():
     for k in (1, 3):
         w._on_page_message(w, {"type": "edge", "index": k}, [])
     assert w.edges == [1, 3]
-    np.testing.assert_array_equal(w.transform.params(), LocalDeformation(SRC, w.dst, edges=(1, 3)).params())
+    # continuous over the picture, as fpiwarp warp builds it
+    np.testing.assert_array_equal(w.transform.params(),
+                                  LocalDeformation(SRC, w.dst, edges=(1, 3)).for_picture(W, H).params())
     with pytest.raises(Exception, match="read-only"):
         w.K = 2.0
+
+
+def test_a_local_deformation_given_is_made_continuous_over_the_picture():
+    """As fpiwarp warp builds it: the picture's extent, unless it has its own."""
+    from fpiwarp.widget.session import Session
+
+    given = LocalDeformation(SRC, DST, edges=(0, 2))
+    w = WarpWidget(picture(), transform=given)
+    np.testing.assert_array_equal(w.transform.params(), given.for_picture(W, H).params())
+    assert not np.array_equal(w.transform.params(), given.params())
+    own = LocalDeformation(SRC, DST, edges=(0, 2), extent=(-10, -10, 2 * W, 2 * H))
+    assert Session(picture(), own).transform is own
 
 
 def test_python_traits_rebuild_the_map_and_bad_ones_keep_it():
@@ -151,17 +165,10 @@ def bridged(chromium):
 
 
 def test_widget_front_end_drag_changes_dst_and_k(bridged):
-    from selenium.webdriver.common.action_chains import ActionChains
-    from selenium.webdriver.common.by import By
-
     driver, w = bridged
     k0 = w.K
     start = driver.execute_script("return window.fpiwarpEditor.toScreen(window.fpiwarpEditor.state.dst[0]);")
-    canvas = driver.find_element(By.CSS_SELECTOR, ".fpw-overlay")
-    cw, ch = canvas.size["width"], canvas.size["height"]
-    ActionChains(driver, duration=10).move_to_element_with_offset(
-        canvas, int(round(start[0] - cw / 2)), int(round(start[1] - ch / 2))).click_and_hold().move_by_offset(
-        30, 20).move_by_offset(10, 10).release().perform()
+    browser.drag(driver, start, [(30, 20), (10, 10)])
     browser.wait_idle(driver)
     assert w.dst[0] != DST[0] and w.dst[1:] == DST[1:]
     assert w.K != k0 and w.K == pytest.approx(FPI(SRC, w.dst).K)
