@@ -84,7 +84,8 @@ def pyramid_levels(ex, ey, top):
     0); u = clamp((frac(lod) - 1 + AA_BLEND) / AA_BLEND, 0, 1), 0 at the top
     level.
 
-    >>> k, u = pyramid_levels(np.array([1.0, 3.9, 4.0, 8.0, 15.0, 64.0]) + 0j, np.array([2.0, 4.0, 4.0, 8.0, 15.0, 64.0]) + 0j, 3)
+    >>> short = np.array([1.0, 3.9, 4.0, 8.0, 15.0, 64.0]) + 0j
+    >>> k, u = pyramid_levels(short, 2 * short, 3)
     >>> k.tolist(), np.round(u, 3).tolist()
     ([0, 0, 1, 2, 2, 3], [0.0, 0.911, 0.0, 0.0, 0.685, 0.0])
     """
