@@ -94,8 +94,10 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
     oh, ow = (int(v) for v in output_shape)
     stack_of_blocks = BlockStack.from_blocks(blocks)
     cval = np.zeros(c) if cval is None else np.broadcast_to(np.asarray(cval, np.float64), (c,))
-    if h > warper.max_size or w > warper.max_size or oh > warper.max_size or not supports_batches(warper.ctx):
-        blocks = stack_of_blocks.blocks()  # image by image
+    if (h > warper.max_size or w > warper.max_size or oh > warper.max_size or not supports_batches(warper.ctx)
+            or antialias):
+        # image by image (antialiased too: each source's pyramid is built once, see GLWarper.pyramids)
+        blocks = stack_of_blocks.blocks()
         maps = blocks * n if len(blocks) == 1 else blocks
         return np.stack([warper.warp_block(stack[i], maps[i], (oh, ow), order=order, mode=mode, cval=cval,
                                            antialias=antialias) for i in range(n)])
