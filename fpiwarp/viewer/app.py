@@ -12,10 +12,13 @@ F fit the view, R reset the points, S save the spec (JSON), E export the
 warped image at full resolution (antialiased when the preview is), Q or
 Esc quit.
 
-Antialiasing is on by default: where the view or the map shrinks the
-picture, each screen pixel averages its footprint over the source's
-pyramid (built once per picture), at about the cost of a plain frame;
-where nothing shrinks (zoomed in) the frame is the plain one, bit for bit.
+Antialiasing (A) is on by default on a GPU: where the view or the map
+shrinks the picture, each screen pixel averages its footprint over the
+source's pyramid (built once per picture); where nothing shrinks (zoomed
+in) the frame is the plain one, bit for bit. On a software rasterizer
+(Mesa llvmpipe: the CPU draws) it starts off, since an antialiased 1080p
+frame there costs several plain ones (benchmarks/results/gl_pyramid.md);
+A turns it on.
 
 While a point is dragged, maps without a constant distortion (local
 deformations) are drawn by the mesh path (see :class:`fpiwarp.viewer.Renderer`,
@@ -35,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..backends.gl.context import software_rasterizer
 from ..errors import BackendUnavailableError, DegenerateQuadError
 from ..io.images import write_image
 from ..maps.fpi import FPI
@@ -300,7 +304,7 @@ def _window_class(window):
 
 def run(image, transform=None, *, info=None, name="preview", spec_path=None, export_path=None,
         overlays=("handles", "outline"), window="pyglet", size=(1280, 800), frames=None, screenshot=None,
-        order=1, antialias=True):
+        order=1, antialias=None):
     """Open the viewer and run its event loop until it is closed.
 
     ``window`` is a moderngl-window window class ("pyglet", "glfw", ... or
@@ -308,7 +312,8 @@ def run(image, transform=None, *, info=None, name="preview", spec_path=None, exp
     ``screenshot`` then writes the last one (tests, scripts). Raises
     BackendUnavailableError, with a one-line reason, when there is no
     display, no GL driver or no toolkit. ``antialias``: the first frames'
-    antialiasing (the A key toggles it). Returns the :class:`Editor`.
+    antialiasing (the A key toggles it); None: on, except on a software
+    rasterizer (see the module's docstring). Returns the :class:`Editor`.
     """
     if window != "headless":
         _check_display()
@@ -321,6 +326,8 @@ def run(image, transform=None, *, info=None, name="preview", spec_path=None, exp
                                       f"{' '.join(str(exc).split())}") from None
     mglw.activate_context(window=wnd)
     ctx = wnd.ctx
+    if antialias is None:
+        antialias = not software_rasterizer(ctx)
     renderer = Renderer(ctx, order=order, background=(0.18, 0.18, 0.2, 1.0), antialias=antialias)
     for o in overlays:
         setattr(renderer, o, True)

@@ -17,12 +17,12 @@ void fpw_chain(vec2 gw, vec2 gwb, inout vec2 dz, inout vec2 dzb) {
     dz = a;
 }
 
-// jacobian.stage_wirtinger: fpw_stage with its derivatives chained into dz, dzb
-vec2 fpw_stage_wirtinger(vec2 z, int base, inout vec2 dz, inout vec2 dzb) {
+// jacobian.stage_wirtinger: fpw_stage_of with its derivatives chained into
+// dz, dzb (core and n_regions arguments as there: constants in a program
+// specialized to a kind of map)
+vec2 fpw_stage_wirtinger_of(vec2 z, int base, int core, int n_regions, inout vec2 dz, inout vec2 dzb) {
     vec4 header = fpw_rows[base + FPW_ROW_HEADER];
-    int core = int(header.x);
     int n = int(header.y);
-    int n_regions = int(header.z);
     int iters = int(header.w);
     float best = 0.0;
     vec2 outside = vec2(fpw_nan());
@@ -84,15 +84,24 @@ float fpw_aa_count(float len) {
     return clamp(ceil(n - FPW_AA_SLACK), 2.0, float(FPW_AA_MAX_TAPS));
 }
 
-// jacobian.wirtinger: the block map's derivatives f_z, f_zbar at xy
+// jacobian.wirtinger: the block map's derivatives f_z, f_zbar at xy, the
+// stages walked as fpw_map walks them (FPW_STAGES: specialized, unrolled)
 void fpw_map_wirtinger(vec2 xy, out vec2 dz, out vec2 dzb) {
     dz = vec2(1.0, 0.0);
     dzb = vec2(0.0);
     vec2 z = xy;
+#ifdef FPW_STAGES
+#define FPW_STAGE(base, core, n_regions) z = fpw_stage_wirtinger_of(z, base, core, n_regions, dz, dzb);
+    FPW_STAGES
+#undef FPW_STAGE
+#else
     int n_stages = int(fpw_rows[0].x);
     for (int k = 0; k < n_stages; ++k) {
-        z = fpw_stage_wirtinger(z, 1 + k * FPW_STAGE_ROWS, dz, dzb);
+        int base = 1 + k * FPW_STAGE_ROWS;
+        vec4 header = fpw_rows[base + FPW_ROW_HEADER];
+        z = fpw_stage_wirtinger_of(z, base, int(header.x), int(header.z), dz, dzb);
     }
+#endif
 }
 
 // the footprint's edges J (1, 0) and J (0, 1) (_antialias.footprint_edges)

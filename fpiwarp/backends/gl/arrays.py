@@ -93,7 +93,7 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
     target = output_texture(src, out, output_shape)
     _, source, output, scale = FORMATS[src.dtype]
     stages = warper.set_map(transform.inverse.params())
-    gather = warper.gather and order == 1 and mode in ("constant", "edge", "wrap") and not antialias
+    gather = warper.gather and order == 1 and mode in ("constant", "edge", "wrap")
     flags = ("FPW_ANTIALIAS",) if antialias else ()
     key = ProgramKey(FULLSCREEN, glsl.WARP_FRAG, stages=stages, order=order, mode=mode, source=source,
                      gather_channels=c if gather else 0, output=output,

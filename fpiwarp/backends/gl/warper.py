@@ -277,9 +277,11 @@ class GLWarper:
     def _program_keys(self, image, order, mode, mesh, hw, tiled, stages, antialias=False):
         """(key of the warp or mesh program, key of the mesh's fill pass or
         None, whether the warp program packs its RGB pixels). Antialiased
-        programs (FPW_ANTIALIAS) neither gather nor pack."""
+        programs (FPW_ANTIALIAS) gather as plain ones do (a pixel that does
+        not shrink runs the plain warp's sampling code) but do not pack (four
+        inlined footprint averages per fragment compile slowly on llvmpipe)."""
         c = image.shape[2]
-        gather = (self.gather and not (hw or tiled or antialias) and mesh is None and order == 1
+        gather = (self.gather and not (hw or tiled) and mesh is None and order == 1
                   and mode in HW_MODES)
         # 3-channel pictures read back as RGB32UI texels (see readback). The
         # warp shader packs its own pixels where its per-pixel code is short
