@@ -12,8 +12,11 @@ source writes one of these numbers itself (a test checks it).
 
 from . import layout as L
 from .sampling_rules import (
+    AA_BLEND,
     AA_FAR_SPACING,
     AA_KNEE_TAPS,
+    AA_LEVEL_SPAN,
+    AA_MAX_LEVEL,
     AA_MAX_TAPS,
     AA_SLACK,
     AA_SPACING,
@@ -60,6 +63,9 @@ KERNEL_CONSTANTS = {
     "AA_SPACING": AA_SPACING,
     "AA_KNEE_TAPS": AA_KNEE_TAPS,
     "AA_FAR_SPACING": AA_FAR_SPACING,
+    "AA_LEVEL_SPAN": AA_LEVEL_SPAN,
+    "AA_BLEND": AA_BLEND,
+    "AA_MAX_LEVEL": AA_MAX_LEVEL,
 }
 
 #: The prefix of the contract's names in each C-like language.

@@ -38,3 +38,19 @@ AA_SPACING = 1.25
 #: antialiasing; the astronaut: 53.9, 62.7 and 23.5 dB).
 AA_KNEE_TAPS = 5
 AA_FAR_SPACING = 1.75
+#: Antialiasing over the source pyramid (fpiwarp.sampling.pyramid): the
+#: footprint is supersampled as above at the level where its shorter edge
+#: spans AA_LEVEL_SPAN to 2 * AA_LEVEL_SPAN texels: level
+#: floor(lod), lod = log2(L_short * (1 + AA_SLACK) / AA_LEVEL_SPAN) clamped
+#: to [0, the top level]. Below a shrink of AA_LEVEL_SPAN that is level 0,
+#: the source itself (the supersampling of earlier releases, bit for bit);
+#: beyond it every edge has at most 2 * AA_LEVEL_SPAN / AA_SPACING + 1
+#: sub-samples per unit of anisotropy, whatever the shrink.
+AA_LEVEL_SPAN = 2.0
+#: Antialiasing: in the last AA_BLEND of each octave of lod the result
+#: blends linearly into the next level's (weight (frac(lod) - 1 + AA_BLEND)
+#: / AA_BLEND), so that a smoothly varying shrink never switches level with
+#: a step; elsewhere one level is read.
+AA_BLEND = 0.25
+#: Antialiasing: the coarsest pyramid level built (a shrink of 2**15).
+AA_MAX_LEVEL = 15

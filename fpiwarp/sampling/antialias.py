@@ -35,9 +35,19 @@ footprint). So:
 
 import numpy as np
 
-from ..block.sampling_rules import AA_FAR_SPACING, AA_KNEE_TAPS, AA_MAX_TAPS, AA_SLACK, AA_SPACING, COORD_LIMIT
+from ..block.sampling_rules import (
+    AA_BLEND,
+    AA_FAR_SPACING,
+    AA_KNEE_TAPS,
+    AA_LEVEL_SPAN,
+    AA_MAX_TAPS,
+    AA_SLACK,
+    AA_SPACING,
+    COORD_LIMIT,
+)
 from ..maps.transform import unsolved_as_nan
 from .positions import CHUNK_PIXELS, pixel_grid
+from .pyramid import Pyramid
 from .sampler import sample
 
 
@@ -65,30 +75,73 @@ def footprint_edges(fz, fzb):
     return fz + fzb, 1j * (fz - fzb)
 
 
-def sample_antialiased(image, pos, ex, ey, order=1, mode="constant", cval=0.0):
-    """Average ``image`` (H, W, C) over the footprints of output pixels at
-    source positions ``pos`` (shape S + (2,), float64) with complex edge
-    vectors ``ex``, ``ey`` (shape S). Float64 values S + (C,), before
-    rounding; plain :func:`sample` where both counts are 1."""
-    x, y = pos[..., 0], pos[..., 1]
-    nx, ny = tap_counts(ex), tap_counts(ey)
-    out = sample(image, x, y, order, mode, cval)
-    multi = np.flatnonzero((nx > 1) | (ny > 1))
-    if multi.size == 0:
-        return out
-    flat_out = out.reshape(-1, out.shape[-1])
-    x, y = x.reshape(-1)[multi], y.reshape(-1)[multi]
-    ex, ey = ex.reshape(-1)[multi], ey.reshape(-1)[multi]
-    nx, ny = nx.reshape(-1)[multi], ny.reshape(-1)[multi]
-    acc = np.zeros((multi.size, out.shape[-1]))
-    for j in range(int(ny.max())):
-        for i in range(int(nx.max())):
+def pyramid_levels(ex, ey, top):
+    """The pyramid level each footprint is supersampled at, and the weight
+    of the next level: (k, u), int and float64 arrays of the edges' shape.
+
+    k = floor(lod), lod = log2(L_short · (1 + AA_SLACK) / AA_LEVEL_SPAN)
+    clamped to [0, top], L_short the shorter edge's length (NaN counts as
+    0); u = clamp((frac(lod) - 1 + AA_BLEND) / AA_BLEND, 0, 1), 0 at the top
+    level.
+
+    >>> short = np.array([1.0, 3.9, 4.0, 8.0, 15.0, 64.0]) + 0j
+    >>> k, u = pyramid_levels(short, 2 * short, 3)
+    >>> k.tolist(), np.round(u, 3).tolist()
+    ([0, 0, 1, 2, 2, 3], [0.0, 0.911, 0.0, 0.0, 0.685, 0.0])
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
+        short = np.minimum(np.abs(ex), np.abs(ey))
+        short = np.where(np.isnan(short), 0.0, short)
+        lod = np.clip(np.log2(np.maximum(short * (1.0 + AA_SLACK) / AA_LEVEL_SPAN, 1.0)), 0.0, top)
+    k = np.floor(lod).astype(np.int64)
+    u = np.clip((lod - k - 1.0 + AA_BLEND) / AA_BLEND, 0.0, 1.0)
+    return k, np.where(k >= top, 0.0, u)
+
+
+def supersample(pyramid, k, x, y, ex, ey, order, mode, cval):
+    """The box average of footprints (1-D arrays: source positions x, y,
+    edges ex, ey) supersampled at level ``k`` (one int for all): tap_counts
+    of the edges in level-k texels per edge, sub-samples at the source
+    positions p + ex·s + ey·t as described in the module docstring."""
+    scale = 2.0**k
+    nx, ny = tap_counts(ex / scale), tap_counts(ey / scale)
+    acc = np.zeros((x.size, pyramid.image.shape[-1]))
+    for j in range(int(ny.max(initial=1))):
+        for i in range(int(nx.max(initial=1))):
             live = np.flatnonzero((i < nx) & (j < ny))
             s = (2 * i + 1 - nx[live]) / (2 * nx[live])
             t = (2 * j + 1 - ny[live]) / (2 * ny[live])
             d = ex[live] * s + ey[live] * t
-            acc[live] += sample(image, x[live] + d.real, y[live] + d.imag, order, mode, cval)
-    values = acc / (nx * ny)[:, None]
+            acc[live] += pyramid.sample(k, x[live] + d.real, y[live] + d.imag, order, mode, cval)
+    return acc / (nx * ny)[:, None]
+
+
+def sample_antialiased(image, pos, ex, ey, order=1, mode="constant", cval=0.0, pyramid=None):
+    """Average ``image`` (H, W, C) over the footprints of output pixels at
+    source positions ``pos`` (shape S + (2,), float64) with complex edge
+    vectors ``ex``, ``ey`` (shape S), reading the levels of ``pyramid`` (a
+    :class:`~fpiwarp.sampling.pyramid.Pyramid` of ``image``, built here
+    when None). Float64 values S + (C,), before rounding; plain
+    :func:`sample` where both level-0 counts are 1."""
+    x, y = pos[..., 0], pos[..., 1]
+    out = sample(image, x, y, order, mode, cval)
+    multi = np.flatnonzero((tap_counts(ex) > 1) | (tap_counts(ey) > 1))
+    if multi.size == 0:
+        return out
+    pyramid = Pyramid(image) if pyramid is None else pyramid
+    flat_out = out.reshape(-1, out.shape[-1])
+    x, y = x.reshape(-1)[multi], y.reshape(-1)[multi]
+    ex, ey = ex.reshape(-1)[multi], ey.reshape(-1)[multi]
+    level, blend = pyramid_levels(ex, ey, pyramid.top)
+    values = np.zeros((multi.size, out.shape[-1]))
+    for k in np.unique(level):
+        sel = np.flatnonzero(level == k)
+        here = supersample(pyramid, int(k), x[sel], y[sel], ex[sel], ey[sel], order, mode, cval)
+        values[sel] = (1.0 - blend[sel, None]) * here
+        up = sel[blend[sel] > 0]
+        if up.size:
+            values[up] += blend[up, None] * supersample(pyramid, int(k) + 1, x[up], y[up], ex[up], ey[up],
+                                                        order, mode, cval)
     cval = np.broadcast_to(np.asarray(cval, dtype=np.float64), (out.shape[-1],))
     with np.errstate(invalid="ignore"):
         finite = (np.abs(x) <= COORD_LIMIT) & (np.abs(y) <= COORD_LIMIT)

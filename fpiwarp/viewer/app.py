@@ -7,9 +7,18 @@ it (two constrained edges make a local deformation, paper §4.1; a third
 click replaces the older one; X clears them).
 
 Keys: H handles, O outline, C checkerboard, D distortion heat map,
-N all overlays off/on, M mesh or per-pixel drawing, F fit the view, R reset
-the points, S save the spec (JSON), E export the warped image at full
-resolution, Q or Esc quit.
+N all overlays off/on, M mesh or per-pixel drawing, A antialiasing on/off,
+F fit the view, R reset the points, S save the spec (JSON), E export the
+warped image at full resolution (antialiased when the preview is), Q or
+Esc quit.
+
+Antialiasing (A) is on by default on a GPU: where the view or the map
+shrinks the picture, each screen pixel averages its footprint over the
+source's pyramid (built once per picture); where nothing shrinks (zoomed
+in) the frame is the plain one, bit for bit. On a software rasterizer
+(Mesa llvmpipe: the CPU draws) it starts off, since an antialiased 1080p
+frame there costs several plain ones (benchmarks/results/gl_pyramid.md);
+A turns it on.
 
 While a point is dragged, maps without a constant distortion (local
 deformations) are drawn by the mesh path (see :class:`fpiwarp.viewer.Renderer`,
@@ -29,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..backends.gl.context import software_rasterizer
 from ..errors import BackendUnavailableError, DegenerateQuadError
 from ..io.images import write_image
 from ..maps.fpi import FPI
@@ -222,6 +232,9 @@ class Editor:
         elif name == "m":
             r.method = self._idle_method = "mesh" if r.method == "pixel" else "pixel"
             self.message = f"{r.method} drawing"
+        elif name == "a":
+            r.antialias = not r.antialias
+            self.message = f"antialiasing {'on' if r.antialias else 'off'}"
         elif name == "x":
             self.edges = []
             self.rebuild()
@@ -295,14 +308,16 @@ def _window_class(window):
 
 def run(image, transform=None, *, info=None, name="preview", spec_path=None, export_path=None,
         overlays=("handles", "outline"), window="pyglet", size=(1280, 800), frames=None, screenshot=None,
-        order=1):
+        order=1, antialias=None):
     """Open the viewer and run its event loop until it is closed.
 
     ``window`` is a moderngl-window window class ("pyglet", "glfw", ... or
     "headless": offscreen, EGL); ``frames`` stops after that many frames and
     ``screenshot`` then writes the last one (tests, scripts). Raises
     BackendUnavailableError, with a one-line reason, when there is no
-    display, no GL driver or no toolkit. Returns the :class:`Editor`.
+    display, no GL driver or no toolkit. ``antialias``: the first frames'
+    antialiasing (the A key toggles it); None: on, except on a software
+    rasterizer (see the module's docstring). Returns the :class:`Editor`.
     """
     if window != "headless":
         _check_display()
@@ -315,7 +330,9 @@ def run(image, transform=None, *, info=None, name="preview", spec_path=None, exp
                                       f"{' '.join(str(exc).split())}") from None
     mglw.activate_context(window=wnd)
     ctx = wnd.ctx
-    renderer = Renderer(ctx, order=order, background=(0.18, 0.18, 0.2, 1.0))
+    if antialias is None:
+        antialias = not software_rasterizer(ctx)
+    renderer = Renderer(ctx, order=order, background=(0.18, 0.18, 0.2, 1.0), antialias=antialias)
     for o in overlays:
         setattr(renderer, o, True)
     editor = Editor(renderer, image, transform, info=info, name=name, spec_path=spec_path, export_path=export_path)
@@ -337,7 +354,7 @@ def run(image, transform=None, *, info=None, name="preview", spec_path=None, exp
         if key == keys.ESCAPE:
             name_ = "escape"
         else:
-            name_ = next((ch for ch in "hocdnmxrfseq" if key == getattr(keys, ch.upper(), None)), None)
+            name_ = next((ch for ch in "hocdnmaxrfseq" if key == getattr(keys, ch.upper(), None)), None)
         if name_ is not None and not editor.key(name_):
             wnd.close()
 

@@ -65,6 +65,7 @@ from ..backends.gl import (
     grid_mesh,
     set_uniform,
 )
+from ..backends.gl.pyramid import PYRAMID_UNIT, build_atlas, set_pyramid_values, upload_atlas
 from ..block import describe
 from ..validation import check_antialias, check_cval, check_image, check_mode, check_order, check_transform
 from .overlays import OverlayLayer, edge_curves, handle_triangles, outline_triangles
@@ -195,8 +196,10 @@ class Renderer:
         self._blocks = {}
         self._dilation = None
         self._texture = None
+        self._pyramid = None  # (atlas texture, rects) of the image's pyramid, made on the first antialiased draw
         self._mesh = None  # (key, MeshBuffers)
         self.uploads = 0  # maps set (set_transform calls), each one block upload
+        self.pyramid_builds = 0  # image pyramids built (one per set_image, on the first antialiased draw)
 
     # ---- state
     @property
@@ -216,6 +219,7 @@ class Renderer:
         fmt, scale = DISPLAY_FORMATS[img.dtype]
         if self._texture is not None:
             self._texture.release()
+        self._release_pyramid()
         tex = self.ctx.texture((w, h), c, np.ascontiguousarray(img).tobytes(), dtype=fmt, alignment=1)
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # texelFetch: no mipmaps needed
         tex.swizzle = _SWIZZLE[c]
@@ -359,6 +363,8 @@ class Renderer:
         set_uniform(prog, "pv_heat_max", float(self.heat_max))
         set_uniform(prog, "pv_dilation", -1.0 if self._dilation is None else self._dilation)
         self._texture.use(0)
+        if self.antialias:
+            self._bind_pyramid(prog)
         ctx.disable(moderngl.BLEND)
         if method == "mesh":
             self._draw_mesh(prog, cval4 if c in (2, 4) else bg, y_down)
@@ -386,6 +392,25 @@ class Renderer:
             self._mesh = (key, MeshBuffers(ctx, *grid_mesh(self.image.shape, step, None, None)))
         # Maps keep orientation; a y-up view mirrors it on the screen.
         draw_culled_mesh(ctx, self._mesh[1].vao(prog), front_face="ccw" if y_down else "cw")
+
+    def _bind_pyramid(self, prog):
+        """Bind the image's pyramid (built on the first antialiased draw
+        after set_image, kept across frames) in the display texture's
+        units and swizzle."""
+        if self._pyramid is None:
+            atlas, rects = build_atlas(self.image, self._scale)
+            tex = upload_atlas(self.ctx, atlas)
+            tex.swizzle = _SWIZZLE[self.image.shape[2]]
+            self._pyramid = (tex, rects)
+            self.pyramid_builds += 1
+        tex, rects = self._pyramid
+        tex.use(PYRAMID_UNIT)
+        set_pyramid_values(prog, rects)
+
+    def _release_pyramid(self):
+        if self._pyramid is not None:
+            self._pyramid[0].release()
+            self._pyramid = None
 
     def _release_mesh(self):
         if self._mesh is not None:
@@ -427,6 +452,7 @@ class Renderer:
         if self._texture is not None:
             self._texture.release()
         self._texture = None
+        self._release_pyramid()
         self._release_mesh()
         if self._owns_warper:
             self.warper.release()  # leaves the caller's framebuffer bound

@@ -18,8 +18,8 @@ never evaluated in the browser outside the shaders of ``glsl/``.
 Messages from the page (dicts, JSON): ``{"type": "move", "index": i,
 "xy": [x, y]}`` (drag handle i there), ``{"type": "release"}``,
 ``{"type": "edge", "index": k}`` (constrain or free edge k),
-``{"type": "key", "key": "s"|"e"|"r"|"x"|"f"}`` (save the spec, export,
-reset, clear the edges, fit the view) and ``{"type": "texture_limit", "value": n}``. Each may
+``{"type": "key", "key": "s"|"e"|"r"|"x"|"f"|"a"}`` (save the spec, export,
+reset, clear the edges, fit the view, antialiasing on/off) and ``{"type": "texture_limit", "value": n}``. Each may
 carry ``"seq"``, echoed in the state as ``"seq"`` so that the page can
 coalesce a drag's moves.
 """
@@ -30,7 +30,9 @@ import math
 
 import numpy as np
 
+from ..backends.gl.pyramid import atlas_layout
 from ..block import describe
+from ..block.sampling_rules import AA_MAX_LEVEL
 from ..errors import ArgumentError, FpiwarpError
 from ..maps.rlinear import RLinear
 from ..maps.transform import Compound
@@ -275,7 +277,9 @@ class Session:
         h, w, c = self.image.shape
         size, _, scale = self._display_texture()
         block = self.display_block()
-        program = shaders.preview_program(block, order=v.order, mode=v.mode, alpha=c in (2, 4))
+        program = shaders.preview_program(block, order=v.order, mode=v.mode, alpha=c in (2, 4),
+                                          antialias=bool(v.antialias))
+        atlas_size, levels = atlas_layout(size[1], size[0])
         self.programs[program["key"]] = program
         k = size[0] / w  # display texture pixels per source pixel
         unit = DISPLAY_SCALE[self.image.dtype]
@@ -290,6 +294,9 @@ class Session:
             "block": base64.b64encode(np.ascontiguousarray(block, dtype="<f4").tobytes()).decode("ascii"),
             "block_rows": int(block.shape[0]),
             "program": program["key"],
+            "antialias": bool(v.antialias),
+            # where the page puts the display texture's pyramid levels (it builds them itself)
+            "pyramid": {"size": list(atlas_size), "levels": [list(r) for r in levels], "max_level": AA_MAX_LEVEL},
             "uniforms": {
                 "fpw_src_size": [size[0], size[1]],
                 "fpw_cval": [float(x) for x in cval4] if c in (2, 4) else [0.0, 0.0, 0.0, 0.0],
@@ -342,9 +349,9 @@ class Session:
                 e.toggle_edge(k)
         elif kind == "key":
             key = str(msg["key"]).lower()
-            if key not in ("s", "e", "r", "x", "f"):
-                raise ArgumentError(f"key: one of s (save spec), e (export), r (reset), x (clear edges), f (fit); "
-                                    f"got {key!r}")
+            if key not in ("s", "e", "r", "x", "f", "a"):
+                raise ArgumentError(f"key: one of s (save spec), e (export), r (reset), x (clear edges), f (fit), "
+                                    f"a (antialiasing); got {key!r}")
             try:
                 e.key(key)
             except (FpiwarpError, OSError) as exc:

@@ -20,11 +20,13 @@ from ..resources import digest
 DIALECT = "es300"
 
 
-def preview_key(block, *, order, mode, alpha):
+def preview_key(block, *, order, mode, alpha, antialias=False):
     """The desktop renderer's per-pixel preview program for ``block``:
-    specialised to its kind of map (a moved point changes values only)."""
+    specialised to its kind of map (a moved point changes values only);
+    ``antialias``: over the display texture's pyramid (FPW_ANTIALIAS)."""
+    flags = (("PV_ALPHA",) if alpha else ()) + (("FPW_ANTIALIAS",) if antialias else ())
     return ProgramKey(FULLSCREEN, glsl.PREVIEW_FRAG, stages=stage_kinds(block), order=order, mode=mode,
-                      flags=("PV_ALPHA",) if alpha else ())
+                      flags=flags)
 
 
 def program_sources(key):
@@ -41,7 +43,7 @@ def _program(key):
     return {"key": digest(vertex, fragment), "vertex": vertex, "fragment": fragment}
 
 
-def preview_program(block, *, order, mode, alpha):
+def preview_program(block, *, order, mode, alpha, antialias=False):
     """{"key", "vertex", "fragment"} of the page's program for ``block``;
     "key" (a digest of the texts) names it: the page compiles each once."""
-    return _program(preview_key(block, order=order, mode=mode, alpha=alpha))
+    return _program(preview_key(block, order=order, mode=mode, alpha=alpha, antialias=antialias))

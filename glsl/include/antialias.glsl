@@ -1,6 +1,7 @@
 // Antialiasing from the analytic Jacobian (FPW_ANTIALIAS): the stage walk
-// with Wirtinger derivatives and the footprint average, mirroring
-// fpiwarp/_antialias.py and fpiwarp/block/jacobian.py. Part of
+// with Wirtinger derivatives and the footprint average over the source
+// pyramid, mirroring fpiwarp/sampling/antialias.py, fpiwarp/sampling/pyramid.py
+// and fpiwarp/block/jacobian.py. Part of
 // fpiwarp.glsl (FPW_WITH_SAMPLER), after sample.glsl.
 
 #ifdef FPW_ANTIALIAS
@@ -16,12 +17,12 @@ void fpw_chain(vec2 gw, vec2 gwb, inout vec2 dz, inout vec2 dzb) {
     dz = a;
 }
 
-// jacobian.stage_wirtinger: fpw_stage with its derivatives chained into dz, dzb
-vec2 fpw_stage_wirtinger(vec2 z, int base, inout vec2 dz, inout vec2 dzb) {
+// jacobian.stage_wirtinger: fpw_stage_of with its derivatives chained into
+// dz, dzb (core and n_regions arguments as there: constants in a program
+// specialized to a kind of map)
+vec2 fpw_stage_wirtinger_of(vec2 z, int base, int core, int n_regions, inout vec2 dz, inout vec2 dzb) {
     vec4 header = fpw_rows[base + FPW_ROW_HEADER];
-    int core = int(header.x);
     int n = int(header.y);
-    int n_regions = int(header.z);
     int iters = int(header.w);
     float best = 0.0;
     vec2 outside = vec2(fpw_nan());
@@ -83,37 +84,120 @@ float fpw_aa_count(float len) {
     return clamp(ceil(n - FPW_AA_SLACK), 2.0, float(FPW_AA_MAX_TAPS));
 }
 
-// jacobian.wirtinger: the block map's derivatives f_z, f_zbar at xy
+// jacobian.wirtinger: the block map's derivatives f_z, f_zbar at xy, the
+// stages walked as fpw_map walks them (FPW_STAGES: specialized, unrolled)
 void fpw_map_wirtinger(vec2 xy, out vec2 dz, out vec2 dzb) {
     dz = vec2(1.0, 0.0);
     dzb = vec2(0.0);
     vec2 z = xy;
+#ifdef FPW_STAGES
+#define FPW_STAGE(base, core, n_regions) z = fpw_stage_wirtinger_of(z, base, core, n_regions, dz, dzb);
+    FPW_STAGES
+#undef FPW_STAGE
+#else
     int n_stages = int(fpw_rows[0].x);
     for (int k = 0; k < n_stages; ++k) {
-        z = fpw_stage_wirtinger(z, 1 + k * FPW_STAGE_ROWS, dz, dzb);
+        int base = 1 + k * FPW_STAGE_ROWS;
+        vec4 header = fpw_rows[base + FPW_ROW_HEADER];
+        z = fpw_stage_wirtinger_of(z, base, int(header.x), int(header.z), dz, dzb);
     }
+#endif
 }
 
 // the footprint's edges J (1, 0) and J (0, 1) (_antialias.footprint_edges)
 vec2 fpw_edge_x(vec2 dz, vec2 dzb) { return dz + dzb; }
 vec2 fpw_edge_y(vec2 dz, vec2 dzb) { return vec2(dzb.y - dz.y, dz.x - dzb.x); }
 
-// _antialias.sample_antialiased at source position pos with footprint
-// edges ex, ey (source pixels)
-vec4 fpw_sample_footprint(vec2 pos, vec2 ex, vec2 ey) {
-    float nx = fpw_aa_count(length(ex));
-    float ny = fpw_aa_count(length(ey));
-    if (nx == 1.0 && ny == 1.0) return fpw_sample(pos);
-    if (!fpw_in_range(pos)) return fpw_cval_term();
+// ---- the pyramid (fpiwarp/sampling/pyramid.py) ------------------------------
+// Levels k >= 1 of the source, float32, packed in one atlas texture built
+// by the host (fpiwarp/backends/gl/pyramid.py): level k's texels are the
+// atlas texels fpw_levels[k].xy + (col, row), of size fpw_levels[k].zw;
+// fpw_aa_top is the coarsest level (0: no level >= 1). Level 0 is the
+// source texture itself, sampled by fpw_sample. FPW_TILED: the atlas
+// texture holds atlas texels fpw_pyramid_tile = [x0, x0 + w) × [y0, y0 + h)
+// only, like the source's tiles (other texels contribute nothing).
+uniform sampler2D fpw_pyramid;
+uniform ivec4 fpw_levels[FPW_AA_MAX_LEVEL + 1];
+uniform int fpw_aa_top;
+#ifdef FPW_TILED
+uniform ivec4 fpw_pyramid_tile;
+#endif
+
+// A texel of the level at atlas rectangle `level` (fpw_texel's rules).
+vec4 fpw_level_texel(ivec4 level, int col, int row, bool inside) {
+    if (FPW_MODE == FPW_MODE_CONSTANT && !inside) return fpw_cval_term();
+    ivec2 ij = level.xy + ivec2(col, row);
+#ifdef FPW_TILED
+    ij -= fpw_pyramid_tile.xy;
+    if (any(lessThan(ij, ivec2(0))) || any(greaterThanEqual(ij, fpw_pyramid_tile.zw))) return vec4(0.0);
+#endif
+    return texelFetch(fpw_pyramid, ij, 0);
+}
+
+// Pyramid.sample for k >= 1: the level (atlas rectangle `level`, 2^k =
+// `scale`) bilinearly at level coordinate (pos + 0.5) / 2^k - 0.5, border
+// modes on the level's own size (fpw_sample's order-1 sum).
+vec4 fpw_sample_level(ivec4 level, float scale, vec2 pos) {
+    vec2 lp = (pos + 0.5) / scale - 0.5;
+    if (!fpw_in_range(lp)) return fpw_cval_term();
+    lp = clamp(lp, vec2(-FPW_COORD_LIMIT), vec2(FPW_COORD_LIMIT));
+    vec2 base = floor(lp);
+    vec2 t = lp - base;
+    ivec2 i = ivec2(base);
+    float wx[2] = float[2](1.0 - t.x, t.x);
+    float wy[2] = float[2](1.0 - t.y, t.y);
+    int cols[2] = int[2](fpw_border(i.x, level.z), fpw_border(i.x + 1, level.z));
+    bool cols_in[2] = bool[2](i.x >= 0 && i.x < level.z, i.x + 1 >= 0 && i.x + 1 < level.z);
+    vec4 out_ = vec4(0.0);
+    for (int r = 0; r < 2; ++r) {
+        int j = i.y + r;
+        int row = fpw_border(j, level.w);
+        bool row_in = j >= 0 && j < level.w;
+        for (int k = 0; k < 2; ++k) {
+            out_ += (wy[r] * wx[k]) * fpw_level_texel(level, cols[k], row, row_in && cols_in[k]);
+        }
+    }
+    return out_;
+}
+
+// antialias.supersample at level k: the box average of the footprint at
+// pos with edges ex, ey, sub-sample counts from the edges in level-k texels
+vec4 fpw_supersample(int k, vec2 pos, vec2 ex, vec2 ey) {
+    float scale = exp2(float(k));
+    float nx = fpw_aa_count(length(ex) / scale);
+    float ny = fpw_aa_count(length(ey) / scale);
+    ivec4 level = fpw_levels[k];
     vec4 acc = vec4(0.0);
     for (int j = 0; j < int(ny); ++j) {
         float t = (2.0 * float(j) + 1.0 - ny) / (2.0 * ny);
         for (int i = 0; i < int(nx); ++i) {
             float s = (2.0 * float(i) + 1.0 - nx) / (2.0 * nx);
-            acc += fpw_sample(pos + (ex * s + ey * t));
+            vec2 p = pos + (ex * s + ey * t);
+            acc += k == 0 ? fpw_sample(p) : fpw_sample_level(level, scale, p);
         }
     }
     return acc / (nx * ny);
+}
+
+// antialias.sample_antialiased at source position pos with footprint
+// edges ex, ey (source pixels): plain where both level-0 counts are 1;
+// else the pole rule, then level k = floor(lod) of pyramid_levels,
+// blended into level k + 1 with weight u in the last FPW_AA_BLEND of the
+// octave.
+vec4 fpw_sample_footprint(vec2 pos, vec2 ex, vec2 ey) {
+    float lx = length(ex);
+    float ly = length(ey);
+    if (fpw_aa_count(lx) == 1.0 && fpw_aa_count(ly) == 1.0) return fpw_sample(pos);
+    if (!fpw_in_range(pos)) return fpw_cval_term();
+    float short_ = isnan(lx) || isnan(ly) ? 0.0 : min(lx, ly);
+    float top = float(fpw_aa_top);
+    float lod = clamp(log2(max(short_ * (1.0 + FPW_AA_SLACK) / FPW_AA_LEVEL_SPAN, 1.0)), 0.0, top);
+    float kf = floor(lod);
+    float u = kf >= top ? 0.0 : clamp((lod - kf - 1.0 + FPW_AA_BLEND) / FPW_AA_BLEND, 0.0, 1.0);
+    int k = int(kf);
+    vec4 v = (1.0 - u) * fpw_supersample(k, pos, ex, ey);
+    if (u > 0.0) v += u * fpw_supersample(k + 1, pos, ex, ey);
+    return v;
 }
 
 // _antialias.sample_antialiased at output position xy

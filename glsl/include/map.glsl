@@ -188,11 +188,15 @@ vec2 fpw_stage(vec2 z, int base) {
 
 // evaluate: the stages in order. A program specialized to one kind of map
 // gets FPW_STAGES from the host: a list of
-//   z = fpw_stage_of(z, base, core, n_regions);
-// with constants, one per stage (the same evaluation, unrolled).
+//   FPW_STAGE(base, core, n_regions)
+// with constants, one per stage (the same evaluation, unrolled); each walk
+// of the stages defines FPW_STAGE (here: z = fpw_stage_of(...); the
+// Wirtinger walk of include/antialias.glsl: with the derivatives).
 vec2 fpw_map(vec2 z) {
 #ifdef FPW_STAGES
+#define FPW_STAGE(base, core, n_regions) z = fpw_stage_of(z, base, core, n_regions);
     FPW_STAGES
+#undef FPW_STAGE
 #else
     int n_stages = int(fpw_rows[0].x);
     for (int k = 0; k < n_stages; ++k) {

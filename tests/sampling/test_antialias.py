@@ -233,3 +233,33 @@ def test_cli_warp_antialias(tmp_path):
     f = FPI([[0, 0], [59, 0], [59, 39], [0, 39]], [[2, 1], [20, 0], [19, 13], [0, 12]])
     assert np.array_equal(fpiwarp.read_image(out_aa), fpiwarp.warp_image(img, f, antialias=True))
     assert np.array_equal(fpiwarp.read_image(out_plain), fpiwarp.warp_image(img, f))
+
+
+# --- over the pyramid: levels >= 1 and the blend between levels ----------------
+
+#: Maps whose footprints reach pyramid levels >= 1: uniform shrinks landing
+#: inside one level, in a blend band, far up the pyramid, anisotropic, and an
+#: FPI whose shrink varies across the frame (crossing levels and bands).
+PYRAMID_MAPS = {
+    "shrink 1/8": lambda: RLinear(0.125, 0, 0.3 + 0.2j),
+    "shrink 1/7.5 (blend band)": lambda: RLinear(1 / 7.5 + 0.01j, 0, 0.1j),
+    "shrink 1/40": lambda: RLinear(1 / 40, 0, 0.5),
+    "anisotropic 1/24 x 1/6": lambda: RLinear((1 / 24 + 1 / 6) / 2, (1 / 24 - 1 / 6) / 2, 1 + 1j),
+    "fpi varying shrink": lambda: FPI([[0, 0], [159, 0], [159, 119], [0, 119]],
+                                      [[1, 2], [38, 0], [9, 6], [0, 20]]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PYRAMID_MAPS))
+def test_backends_agree_over_the_pyramid(any_backend, name):
+    transform = PYRAMID_MAPS[name]()
+    rng = np.random.default_rng(17)
+    for dtype in kernel_cases.DTYPES:
+        img = kernel_cases.make_image((120, 160, 3), dtype, seed=int(rng.integers(100)))
+        for order in kernel_cases.ORDERS:
+            mode = kernel_cases.MODES[int(rng.integers(4))]
+            want = fpiwarp.warp_image(img, transform, (24, 40), order=order, mode=mode, cval=[9, 99, 200],
+                                      antialias=True, backend="numpy")
+            got = fpiwarp.warp_image(img, transform, (24, 40), order=order, mode=mode, cval=[9, 99, 200],
+                                     antialias=True, backend=any_backend)
+            kernel_cases.assert_images_agree(got, want, dtype)

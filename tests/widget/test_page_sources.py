@@ -50,6 +50,6 @@ def test_page_programs_are_the_desktop_preview_in_the_es_dialect(f):
     # the same text after the first line (the dialect's #version and precision preamble)
     assert fragment.split("#define", 1)[1] == desktop.split("#define", 1)[1]
     assert fragment.startswith("#version 300 es\nprecision highp float;")
-    assert "FPW_STAGES z = fpw_stage_of" in fragment and "#define PV_ALPHA" in fragment
+    assert "FPW_STAGES FPW_STAGE(1, " in fragment and "#define PV_ALPHA" in fragment
     with pytest.raises(ValueError, match="dialect"):
         glsl.assemble(key.fragment, dialect="webgpu")

@@ -25,6 +25,7 @@ import numpy as np
 from ... import glsl
 from ...arrays.kinds import array_info
 from ...errors import ArgumentError, DeviceMismatchError
+from .pyramid import PYRAMID_UNIT, build_atlas, set_pyramid_values, upload_atlas
 
 #: Texture dtype -> (image dtype, sampler source kind, fragment output, output scale).
 FORMATS = {"f1": (np.dtype(np.uint8), "unorm", "float", 1.0 / 255.0),
@@ -92,7 +93,7 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
     target = output_texture(src, out, output_shape)
     _, source, output, scale = FORMATS[src.dtype]
     stages = warper.set_map(transform.inverse.params())
-    gather = warper.gather and order == 1 and mode in ("constant", "edge", "wrap") and not antialias
+    gather = warper.gather and order == 1 and mode in ("constant", "edge", "wrap")
     flags = ("FPW_ANTIALIAS",) if antialias else ()
     key = ProgramKey(FULLSCREEN, glsl.WARP_FRAG, stages=stages, order=order, mode=mode, source=source,
                      gather_channels=c if gather else 0, output=output,
@@ -107,6 +108,13 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
     caller = bound_framebuffer(ctx)
     saved = (src.filter, src.repeat_x, src.repeat_y)
     fbo = ctx.framebuffer(color_attachments=[target])
+    pyramid = None
+    if antialias:  # the texture may have changed unseen since any earlier call: its pyramid is built anew
+        pixels = np.frombuffer(src.read(alignment=1), dtype).reshape(h, w, c)
+        atlas, rects = build_atlas(pixels)
+        pyramid = upload_atlas(ctx, atlas)
+        pyramid.use(PYRAMID_UNIT)
+        set_pyramid_values(prog, rects)
     try:
         src.filter = (moderngl.NEAREST, moderngl.NEAREST)
         src.repeat_x = src.repeat_y = mode == "wrap"  # where textureGather places its taps
@@ -118,6 +126,8 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
         src.filter, src.repeat_x, src.repeat_y = saved
         warper.targets.dummy.use()
         fbo.release()
+        if pyramid is not None:
+            pyramid.release()
         if not warper.targets.owns(caller):
             caller.use()
     return target

@@ -30,7 +30,7 @@ import numpy as np
 
 from ...block import describe
 from ...block.many import BlockStack
-from .context import bound_framebuffer
+from .context import bound_framebuffer, software_rasterizer
 from .programs import MAX_ROWS, set_uniform
 from .tiling import SOURCE_TEXTURE_DTYPES, tiles
 
@@ -43,8 +43,6 @@ CHUNK_BYTES = 256 << 20
 #: of 5 interleaved: draws of 2 MiB 301 ms, 4 MiB 387 ms, 16 MiB 510 ms,
 #: 256 MiB 537 ms, the loop 533 ms.
 SOFTWARE_CHUNK_BYTES = 2 << 20
-#: Renderer names of software rasterizers (GL_RENDERER, lower case).
-SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swiftshader", "software")
 #: Shader storage binding point of the stacked blocks.
 BATCH_BINDING = 0
 
@@ -77,8 +75,7 @@ def images_per_draw(warper, image_shape, output_shape, itemsize):
     (h, w, _), (oh, ow) = image_shape, output_shape
     info = warper.ctx.info
     per_image = (h * w + oh * ow) * 4 * itemsize
-    software = any(name in str(info.get("GL_RENDERER", "")).lower() for name in SOFTWARE_RENDERERS)
-    chunk = SOFTWARE_CHUNK_BYTES if software else CHUNK_BYTES
+    chunk = SOFTWARE_CHUNK_BYTES if software_rasterizer(warper.ctx) else CHUNK_BYTES
     limits = [warper.max_size // oh, info.get("GL_MAX_ARRAY_TEXTURE_LAYERS") or 256, chunk // per_image,
               (info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 1 << 24) // (MAX_ROWS * 16)]
     return max(1, min(limits))
@@ -94,8 +91,10 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
     oh, ow = (int(v) for v in output_shape)
     stack_of_blocks = BlockStack.from_blocks(blocks)
     cval = np.zeros(c) if cval is None else np.broadcast_to(np.asarray(cval, np.float64), (c,))
-    if h > warper.max_size or w > warper.max_size or oh > warper.max_size or not supports_batches(warper.ctx):
-        blocks = stack_of_blocks.blocks()  # image by image
+    if (h > warper.max_size or w > warper.max_size or oh > warper.max_size or not supports_batches(warper.ctx)
+            or antialias):
+        # image by image (antialiased too: each source's pyramid is built once, see GLWarper.pyramids)
+        blocks = stack_of_blocks.blocks()
         maps = blocks * n if len(blocks) == 1 else blocks
         return np.stack([warper.warp_block(stack[i], maps[i], (oh, ow), order=order, mode=mode, cval=cval,
                                            antialias=antialias) for i in range(n)])

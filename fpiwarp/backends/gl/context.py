@@ -127,6 +127,15 @@ def probe():
     return None
 
 
+#: Renderer names of software rasterizers (GL_RENDERER, lower case).
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swiftshader", "software")
+
+
+def software_rasterizer(ctx):
+    """Whether ``ctx`` renders on the CPU (Mesa llvmpipe, softpipe, SwiftShader)."""
+    return any(name in str(ctx.info.get("GL_RENDERER", "")).lower() for name in SOFTWARE_RENDERERS)
+
+
 def bound_framebuffer(ctx):
     """The framebuffer bound in ``ctx`` (moderngl's record), or framebuffer 0
     when none is recorded or the recorded one has been released."""

@@ -48,8 +48,7 @@ def stages_define(kinds):
     ``kinds`` lists each stage's (core, number of regions). Values (quad
     corners, TPS weights, ...) stay in the block, so every FPI shares one
     program, and moving points never recompiles."""
-    calls = [f"z = fpw_stage_of(z, {1 + k * P.STAGE_ROWS}, {core}, {n_regions});"
-             for k, (core, n_regions) in enumerate(kinds)]
+    calls = [f"FPW_STAGE({1 + k * P.STAGE_ROWS}, {core}, {n_regions})" for k, (core, n_regions) in enumerate(kinds)]
     return "FPW_STAGES " + " ".join(calls)
 
 

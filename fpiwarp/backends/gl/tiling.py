@@ -14,6 +14,7 @@ import numpy as np
 
 from ...sampling.sampler import to_dtype
 from .programs import set_uniform
+from .pyramid import PYRAMID_UNIT
 
 #: Texture formats of the software sampler's source, by image dtype:
 #: uint8 normalized (fastest on software rasterizers, scaled back by 255 in
@@ -26,17 +27,36 @@ def tiles(n, size):
     return [(a, min(n, a + size)) for a in range(0, n, size)]
 
 
-def render_tiled_source(warper, image, out, prog, draw, cval, covers):
+def _grid(h, w, size_limit):
+    """(x0, y0, x1, y1) of the texture-sized tiles of an h × w picture."""
+    return [(x0, y0, x1, y1) for y0, y1 in tiles(h, size_limit) for x0, x1 in tiles(w, size_limit)]
+
+
+def _write_tile(tex, picture, grid, i):
+    """Write tile i of ``grid`` of ``picture`` into ``tex``: its (x0, y0,
+    w, h), or an empty tile past the grid's end (nothing to read)."""
+    if i >= len(grid):
+        return (0, 0, 0, 0)
+    x0, y0, x1, y1 = grid[i]
+    tex.write(np.ascontiguousarray(picture[y0:y1, x0:x1]), viewport=(0, 0, x1 - x0, y1 - y0))
+    return (x0, y0, x1 - x0, y1 - y0)
+
+
+def render_tiled_source(warper, image, out, prog, draw, cval, covers, atlas=None):
     """Warp a source above the size limit into ``out``: per output tile,
     sum one additive pass per source tile into float32, then round on the
     host. ``draw()`` draws ``prog`` once; ``covers``: ``prog`` marks the
-    pixels it covers (the mesh path), the others get ``cval``."""
+    pixels it covers (the mesh path), the others get ``cval``. ``atlas``:
+    the antialiasing pyramid's levels >= 1 (:mod:`.pyramid`), tiled alike:
+    pass i holds source tile i and atlas tile i (either may be empty)."""
     ctx, size_limit = warper.ctx, warper.max_size
     h, w, c = image.shape
     oh, ow = out.shape[:2]
     full = (min(ow, size_limit), min(oh, size_limit))
     fbo = warper.targets.target("acc", full, 4, "f4", cover=covers)
-    src_tiles = [(x0, y0, x1, y1) for y0, y1 in tiles(h, size_limit) for x0, x1 in tiles(w, size_limit)]
+    src_tiles = _grid(h, w, size_limit)
+    atlas_tiles = [] if atlas is None else _grid(atlas.shape[0], atlas.shape[1], size_limit)
+    passes = max(len(src_tiles), len(atlas_tiles))
     dt = SOURCE_TEXTURE_DTYPES[image.dtype]
     for oy0, oy1 in tiles(oh, size_limit):
         for ox0, ox1 in tiles(ow, size_limit):
@@ -51,9 +71,14 @@ def render_tiled_source(warper, image, out, prog, draw, cval, covers):
             tex = warper.targets.texture("src_tile", (size_limit, size_limit), c, dt)
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             tex.use(0)
-            for i, (x0, y0, x1, y1) in enumerate(src_tiles):
-                tex.write(np.ascontiguousarray(image[y0:y1, x0:x1]), viewport=(0, 0, x1 - x0, y1 - y0))
-                set_uniform(prog, "fpw_tile", (x0, y0, x1 - x0, y1 - y0))
+            if atlas is not None:
+                atlas_tex = warper.targets.texture("pyramid_tile", (size_limit, size_limit), c, "f4")
+                atlas_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                atlas_tex.use(PYRAMID_UNIT)
+            for i in range(passes):
+                set_uniform(prog, "fpw_tile", _write_tile(tex, image, src_tiles, i))
+                if atlas is not None:
+                    set_uniform(prog, "fpw_pyramid_tile", _write_tile(atlas_tex, atlas, atlas_tiles, i))
                 set_uniform(prog, "fpw_primary", 1 if i == 0 else 0)
                 draw()
             ctx.disable(moderngl.BLEND)

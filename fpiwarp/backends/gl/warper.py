@@ -25,6 +25,7 @@ from . import readback
 from .context import bound_framebuffer, create_context
 from .mesh import MeshBuffers, draw_culled_mesh, grid_mesh
 from .programs import FULLSCREEN, MAX_ROWS, ProgramCache, ProgramKey, set_uniform
+from .pyramid import PYRAMID_UNIT, PyramidCache, atlas_layout, set_pyramid_values
 from .targets import TargetCache
 from .tiling import SOURCE_TEXTURE_DTYPES, render_tiled_source, tiles
 
@@ -106,6 +107,8 @@ class GLWarper:
         self.ubo = self.ctx.buffer(reserve=MAX_ROWS * 16)
         self.programs = ProgramCache(self.ctx, ubo_binding, _varying_slots(info))
         self.targets = TargetCache(self.ctx)
+        #: the antialiasing pyramid of the last source (reused while its pixels stay)
+        self.pyramids = PyramidCache(self.ctx)
         self.short_map = False  # set by set_map
 
     # ---- programs and per-draw values
@@ -163,6 +166,7 @@ class GLWarper:
         if self.targets.owns(bound):
             bound = self.ctx.detect_framebuffer(0)
         self.programs.release()
+        self.pyramids.release()
         self.ubo.release()
         self.targets.release(rebind=bound)
 
@@ -205,8 +209,10 @@ class GLWarper:
         0 and 1, modes constant/edge/wrap): faster, but bilinear weights are
         quantized by the hardware, so results may differ from the reference
         by a level or so. Sources above the size limit use the software path.
-        ``antialias=True`` averages each pixel's footprint (fpiwarp.sampling.antialias;
-        software sampling, FPW_ANTIALIAS in glsl/include/antialias.glsl).
+        ``antialias=True`` averages each pixel's footprint over the source's
+        pyramid (fpiwarp.sampling.antialias; software sampling, FPW_ANTIALIAS
+        in glsl/include/antialias.glsl); the pyramid is built once per
+        source pixels and reused (:class:`.pyramid.PyramidCache`).
         """
         return self.warp_block(image, transform.inverse.params(), output_shape, order=order, mode=mode, cval=cval,
                                hardware_filter=hardware_filter, antialias=antialias)
@@ -271,9 +277,11 @@ class GLWarper:
     def _program_keys(self, image, order, mode, mesh, hw, tiled, stages, antialias=False):
         """(key of the warp or mesh program, key of the mesh's fill pass or
         None, whether the warp program packs its RGB pixels). Antialiased
-        programs (FPW_ANTIALIAS) neither gather nor pack."""
+        programs (FPW_ANTIALIAS) gather as plain ones do (a pixel that does
+        not shrink runs the plain warp's sampling code) but do not pack (four
+        inlined footprint averages per fragment compile slowly on llvmpipe)."""
         c = image.shape[2]
-        gather = (self.gather and not (hw or tiled or antialias) and mesh is None and order == 1
+        gather = (self.gather and not (hw or tiled) and mesh is None and order == 1
                   and mode in HW_MODES)
         # 3-channel pictures read back as RGB32UI texels (see readback). The
         # warp shader packs its own pixels where its per-pixel code is short
@@ -302,7 +310,7 @@ class GLWarper:
         h, w, c = image.shape
         oh, ow = (int(v) for v in output_shape)
         out = np.empty((oh, ow, c), dtype=image.dtype)
-        tiled = h > self.max_size or w > self.max_size
+        tiled = h > self.max_size or w > self.max_size or antialias and max(atlas_layout(h, w)[0]) > self.max_size
         hw = hardware_filter and not tiled
         key, fill_key, packs = self._program_keys(image, order, mode, mesh, hw, tiled, stages, antialias)
         prog = self.program(key)
@@ -329,10 +337,16 @@ class GLWarper:
                 vao.render(moderngl.TRIANGLES, vertices=3)
         try:
             if tiled:
-                render_tiled_source(self, image, out, prog, draw, cval, covers=mesh is not None)
+                atlas = None
+                if antialias:
+                    atlas, rects = self.pyramids.host(image)
+                    set_pyramid_values(prog, rects)
+                render_tiled_source(self, image, out, prog, draw, cval, covers=mesh is not None, atlas=atlas)
             else:
                 src = self._upload_source(prog, image, hw, order, mode, cval)
                 src.use(0)
+                if antialias:
+                    self.bind_pyramid(prog, image)
                 for y0, y1 in tiles(oh, self.max_size):
                     for x0, x1 in tiles(ow, self.max_size):
                         self._draw_tile(image, out, (prog, fill), draw, (x0, y0, x1, y1), packs)
@@ -341,6 +355,13 @@ class GLWarper:
             if hw:  # unbind the sampler object: unit 0 uses texture state again
                 self.targets.get("sampler").clear(0)
         return out
+
+    def bind_pyramid(self, prog, image):
+        """Bind the antialiasing pyramid of ``image`` (built once per its
+        pixels) for ``prog``."""
+        tex, rects = self.pyramids.texture(image)
+        tex.use(PYRAMID_UNIT)
+        set_pyramid_values(prog, rects)
 
     # ---- for batches (fpiwarp.backends.gl.batch)
     def warp_program_key(self, image, order, mode, stages, antialias=False):

@@ -93,6 +93,7 @@ export function createEditor(root, transport) {
       <button data-key="d" title="D: distortion heat map">Heat map</button>
       <span class="fpw-sep"></span>
       <button data-key="f" title="F: fit the view to the warped content">Fit</button>
+      <button data-key="a" title="A: antialiasing on/off (the view and the export)">Antialias</button>
       <button data-key="r" title="R: reset the points">Reset</button>
       <button data-key="x" title="X: free the constrained edges">Clear edges</button>
       <button data-key="s" title="S: save the spec (JSON)">Save spec</button>
@@ -130,6 +131,9 @@ export function createEditor(root, transport) {
     imageVersion: -1,
     tex: null,
     texFloat: false,
+    texels: null,
+    atlas: null,
+    pyramidBuilds: 0, // atlases built (tests: one per picture)
   };
 
   const gl = glCanvas.getContext("webgl2", {
@@ -214,13 +218,64 @@ export function createEditor(root, transport) {
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
     ed.tex = tex;
     ed.texFloat = isFloat;
+    ed.texels = { data: texels, width: meta.width, height: meta.height, unit: isFloat ? 1 : 255 };
+    if (ed.atlas) gl.deleteTexture(ed.atlas);
+    ed.atlas = null; // the pyramid of this picture: built on the first antialiased frame
     ed.imageVersion = meta.version ?? version;
+  }
+
+  // ---- the pyramid of antialiasing (fpiwarp/sampling/pyramid.py, glsl/include/antialias.glsl): levels >= 1
+  // of the display texture, each level's texel the mean of 2 x 2 texels of the one below (indices past the
+  // last row or column clamped), in float64 as the reference, stored as float32 in one RGBA32F atlas at the
+  // rectangles Python's fpiwarp.backends.gl.pyramid.atlas_layout gives (state.pyramid)
+  function atlasTexels(t, pyramid) {
+    const [aw, ah] = pyramid.size;
+    const rects = pyramid.levels;
+    const atlas = new Float32Array(4 * aw * ah);
+    let level = Float64Array.from(t.data, (v) => v / t.unit);
+    let lw = t.width;
+    let lh = t.height;
+    for (let k = 1; k < rects.length; k++) {
+      const [x0, y0, nw, nh] = rects[k];
+      const next = new Float64Array(4 * nw * nh);
+      for (let i = 0; i < nh; i++) {
+        const r0 = 4 * lw * (2 * i);
+        const r1 = 4 * lw * Math.min(2 * i + 1, lh - 1);
+        for (let j = 0; j < nw; j++) {
+          const c0 = 4 * (2 * j);
+          const c1 = 4 * Math.min(2 * j + 1, lw - 1);
+          for (let ch = 0; ch < 4; ch++) {
+            const v = 0.25 * ((level[r0 + c0 + ch] + level[r0 + c1 + ch]) + (level[r1 + c0 + ch] + level[r1 + c1 + ch]));
+            next[4 * (i * nw + j) + ch] = v;
+            atlas[4 * ((y0 + i) * aw + x0 + j) + ch] = v;
+          }
+        }
+      }
+      level = next;
+      lw = nw;
+      lh = nh;
+    }
+    return atlas;
+  }
+
+  function loadPyramid(pyramid) {
+    const tex = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, tex);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, pyramid.size[0], pyramid.size[1], 0, gl.RGBA, gl.FLOAT,
+      atlasTexels(ed.texels, pyramid));
+    // float textures are complete only with NEAREST filters (the shader reads texels: no float filtering needed)
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    ed.atlas = tex;
+    ed.pyramidBuilds += 1;
   }
 
   // ---- state from Python
   async function apply(state) {
     const first = ed.state === null;
     if (state.image.version !== ed.imageVersion) await loadImage(state.image.version);
+    if (state.antialias && !ed.atlas) loadPyramid(state.pyramid);
     const p = await program(state.program);
     const rows = fromBase64(state.block);
     const size = Math.max(p.blockSize, rows.length);
@@ -383,6 +438,16 @@ export function createEditor(root, transport) {
     }
     setUniform(p, "pv_checker", ed.overlays.has("checkerboard") ? st.checker_size : 0.0);
     setUniform(p, "pv_heat", ed.overlays.has("heatmap") ? st.heat_mix : 0.0);
+    if (st.antialias) {
+      const levels = new Int32Array(4 * (st.pyramid.max_level + 1));
+      levels.set(st.pyramid.levels.flat());
+      const loc = p.uniforms["fpw_levels[0]"];
+      if (loc) gl.uniform4iv(loc.loc, levels);
+      setUniform(p, "fpw_aa_top", st.pyramid.levels.length - 1);
+      setUniform(p, "fpw_pyramid", 2);
+      gl.activeTexture(gl.TEXTURE2);
+      gl.bindTexture(gl.TEXTURE_2D, ed.atlas);
+    }
     gl.activeTexture(gl.TEXTURE0);
     gl.bindTexture(gl.TEXTURE_2D, ed.tex);
     gl.bindBufferBase(gl.UNIFORM_BUFFER, 0, ubo);
@@ -634,7 +699,7 @@ export function createEditor(root, transport) {
     } else if (name === "f") {
       ed.lastView = null; // adopt the fit Python sends back, even if unchanged
       post({ type: "key", key: "f" });
-    } else if ("rxse".includes(name)) {
+    } else if ("rxsea".includes(name)) {
       post({ type: "key", key: name });
     }
   }
@@ -643,7 +708,7 @@ export function createEditor(root, transport) {
   root.addEventListener("keydown", (ev) => {
     if (ev.ctrlKey || ev.metaKey || ev.altKey) return;
     const name = ev.key.toLowerCase();
-    if ("hocdnfrxse".includes(name) && name.length === 1) {
+    if ("hocdnfrxsea".includes(name) && name.length === 1) {
       ev.preventDefault();
       key(name);
     }

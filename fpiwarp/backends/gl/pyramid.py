@@ -1,0 +1,130 @@
+"""The source pyramid of antialiasing on GL: levels >= 1 in one float atlas.
+
+Levels are those of :class:`fpiwarp.sampling.pyramid.Pyramid` (ceil sizes,
+clamped 2×2 means), built on the host by the reference itself (float64,
+stored as float32) and uploaded once as one float32 texture, the atlas:
+level 1 at (0, 0), levels 2, 3, ... stacked in a column to its right. GL's
+own mipmaps cannot hold them (floor sizes). The shader reads level k's
+texels at ``fpw_levels[k].xy + (col, row)`` with texelFetch
+(glsl/include/antialias.glsl); level 0 is the source texture itself.
+
+Why the host: on a software rasterizer (llvmpipe) the GPU is the same CPU
+cores, and numpy's halving of a 1080p picture costs about what a render
+pass would (both far below one antialiased frame); the host build is the
+reference's own arithmetic, needs no render-to-float-texture support and
+no feedback loop (which WebGL2 forbids), and serves the browser page too.
+
+:class:`PyramidCache` keeps the last source's atlas: an antialiased warp
+of the same pixels (another map, the next frame of an animation, a batch
+with one source) reuses it. A host array is compared with a copy of the
+pixels the atlas was built from, so a writeable array changed in place
+gets a new atlas, never stale levels.
+"""
+
+import moderngl
+import numpy as np
+
+from ...block.sampling_rules import AA_MAX_LEVEL
+from ...sampling.pyramid import Pyramid, level_sizes
+from .programs import set_uniform
+
+#: The texture unit the atlas is bound to (the source is on unit 0).
+PYRAMID_UNIT = 2
+
+
+def atlas_layout(height, width):
+    """((atlas width, atlas height), [(x0, y0, w, h) of levels 0 .. top]):
+    level 0's entry is the source's own size at (0, 0) (not in the atlas).
+
+    >>> atlas_layout(5, 8)
+    ((6, 3), [(0, 0, 8, 5), (0, 0, 4, 3), (4, 0, 2, 2), (4, 2, 1, 1)])
+    """
+    sizes = level_sizes(height, width)
+    rects = [(0, 0, int(width), int(height))]
+    if len(sizes) == 1:
+        return (1, 1), rects
+    h1, w1 = sizes[1]
+    rects.append((0, 0, w1, h1))
+    y = 0
+    for h, w in sizes[2:]:
+        rects.append((w1, y, w, h))
+        y += h
+    aw = w1 + (sizes[2][1] if len(sizes) > 2 else 0)
+    return (aw, max(h1, y)), rects
+
+
+def build_atlas(image, scale=1.0):
+    """(atlas (H, W, C) float32, rects) of an (h, w, c) image (see
+    :func:`atlas_layout`), its values divided by ``scale`` (a display
+    texture's normalization)."""
+    h, w, c = image.shape
+    size, rects = atlas_layout(h, w)
+    atlas = np.zeros((size[1], size[0], c), np.float32)
+    levels = Pyramid(image).levels
+    for (x0, y0, lw, lh), level in zip(rects[1:], levels[1:], strict=True):
+        atlas[y0:y0 + lh, x0:x0 + lw] = level if scale == 1.0 else level / scale
+    return atlas, rects
+
+
+def set_pyramid_values(prog, rects):
+    """The atlas uniforms of an antialiasing program (its texture bound to
+    :data:`PYRAMID_UNIT`): each level's rectangle and the top level."""
+    levels = list(rects) + [(0, 0, 1, 1)] * (AA_MAX_LEVEL + 1 - len(rects))
+    member = prog.get("fpw_levels", None)
+    if member is not None:
+        member.write(np.asarray(levels[: member.array_length], np.int32).tobytes())
+    set_uniform(prog, "fpw_aa_top", len(rects) - 1)
+    set_uniform(prog, "fpw_pyramid", PYRAMID_UNIT)
+
+
+def upload_atlas(ctx, atlas, tex=None):
+    """A float32 texture holding ``atlas`` (``tex`` reused when its size
+    and components match)."""
+    h, w, c = atlas.shape
+    if tex is None or tex.size != (w, h) or tex.components != c:
+        if tex is not None:
+            tex.release()
+        tex = ctx.texture((w, h), c, dtype="f4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    tex.write(np.ascontiguousarray(atlas))
+    return tex
+
+
+class PyramidCache:
+    """The atlas of the last source antialiased in one context (see the
+    module's docstring)."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.builds = 0  # atlases built so far (tests: reuse)
+        self._pixels = None  # a copy of the pixels the atlas was built from
+        self._atlas = None
+        self._rects = None
+        self._texture = None
+
+    def host(self, image):
+        """(atlas array, rects) for ``image``, built only when its pixels
+        (shape, dtype, values) differ from the last one's."""
+        cached = self._pixels
+        if cached is None or cached.shape != image.shape or cached.dtype != image.dtype or \
+                not np.array_equal(cached, image):
+            self._atlas, self._rects = build_atlas(image)
+            self._pixels = np.array(image, copy=True)
+            self.builds += 1
+            if self._texture is not None:
+                self._texture.release()
+                self._texture = None
+        return self._atlas, self._rects
+
+    def texture(self, image):
+        """(float32 atlas texture, rects) for ``image``, uploaded once per atlas."""
+        atlas, rects = self.host(image)
+        if self._texture is None:
+            self._texture = upload_atlas(self.ctx, atlas)
+        return self._texture, rects
+
+    def release(self):
+        """Free the texture and forget the pixels."""
+        if self._texture is not None:
+            self._texture.release()
+        self._texture = self._pixels = self._atlas = self._rects = None
