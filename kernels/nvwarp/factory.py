@@ -220,37 +220,50 @@ def _make_image_kernel(spec):
     return wp.kernel(warp_image, enable_backward=False, module=_module_name(label, spec))
 
 
-def pyramid_kernel(dtype):
+def pyramid_kernel(dtype, rows=False):
     """The kernel making one pyramid level from the one below it (source
     dtype ``dtype`` for level 1, "float32" above), made once per process:
     arguments (src (rows, W, C), first row, rows, columns of the level
-    below; dst (rows, W', C) float32, first row of the level; first row of
-    the launch), launched over the level's (rows, columns). Thread (i, j)
-    writes texel (i, j) of the level
-    (:mod:`fpiwarp.sampling.pyramid`: the mean of 2 × 2 texels below, indices
-    past the last row or column clamped to it)."""
+    below; dst (rows, W', C) float32, first row, columns of the level;
+    first row of the launch), launched over the level's (rows, columns),
+    or its rows with ``rows`` (a thread per row, as the image kernels on
+    Warp's CPU device). Texel (i, j) of the level is
+    :func:`~.sample.level_texel` of texels 2i, 2i + 1 and 2j, 2j + 1
+    below, an index past the last row or column clamped to it
+    (:mod:`fpiwarp.sampling.pyramid`)."""
     name = np.dtype(dtype).name
     if name not in DTYPES:
         raise ValueError(f"no pyramid kernel for dtype {name}; the kernels read {sorted(DTYPES)}")
-    return _cached(("pyramid", name), _make_pyramid_kernel)
+    return _cached(("pyramid", name, bool(rows)), _make_pyramid_kernel)
 
 
 def _make_pyramid_kernel(key):
     T = wp.dtype_from_numpy(np.dtype(key[1]))
+    ROWS = key[2]
 
     def halve(
-        src: wp.array3d(dtype=T), src0: int, h: int, w: int, dst: wp.array3d(dtype=float), dst0: int, row0: int,
+        src: wp.array3d(dtype=T), src0: int, h: int, w: int, dst: wp.array3d(dtype=float), dst0: int, w2: int,
+        row0: int,
     ):
-        i, j = wp.tid()
-        i = i + row0
+        if wp.static(ROWS):
+            i = wp.tid() + row0
+            j = wp.int32(0)
+            j_last = w2
+        else:
+            i, j = wp.tid()
+            i = i + row0
+            j_last = j + 1
         r0 = src0 + 2 * i
         r1 = src0 + wp.min(2 * i + 1, h - 1)
-        c0 = 2 * j
-        c1 = wp.min(2 * j + 1, w - 1)
-        for c in range(src.shape[2]):
-            dst[dst0 + i, j, c] = level_texel(src, r0, r1, c0, c1, c)
+        channels = src.shape[2]
+        while j < j_last:
+            c0 = 2 * j
+            c1 = wp.min(2 * j + 1, w - 1)
+            for c in range(channels):
+                dst[dst0 + i, j, c] = level_texel(src, r0, r1, c0, c1, c)
+            j = j + 1
 
-    label = f"pyramid_{key[1]}"
+    label = f"pyramid_{key[1]}{'_rows' if ROWS else ''}"
     halve.__name__ = halve.__qualname__ = label
     return wp.kernel(halve, enable_backward=False, module=_module_name(label, key))
 

@@ -39,7 +39,7 @@ from ...block import MAX_ROWS, describe
 from ...block.sampling_rules import MODES
 from ...errors import ArgumentError
 from .prepared import BoundMap, JobCache
-from .pyramid import DevicePyramid
+from .pyramid import DevicePyramid, HostPyramids
 
 #: Environment variable naming the Warp device, e.g. "cpu" or "cuda:0".
 DEVICE_ENV = "FPIWARP_WARP_DEVICE"
@@ -232,6 +232,7 @@ class Backend:
                            wp.zeros(1, dtype=wp.vec3i, device=self.device)]
         self._buffers = {}
         self._jobs = JobCache()  # prepared jobs of plain warp_image calls
+        self.host_pyramids = HostPyramids()  # antialiasing's pyramids of recent host sources
         self.block_kind = None  # what the kernels specialize on, of the block uploaded last
         self._batch_runner = None  # the batch kernels, loaded on first use
 
@@ -268,8 +269,9 @@ class Backend:
         return self._loaded_kernel(self.kernels.point_kernel(self.kernels.PointKernel(sets=sets)))
 
     def pyramid_kernel(self, dtype):
-        """The pyramid level kernel reading ``dtype``, loaded on this device."""
-        return self._loaded_kernel(self.kernels.pyramid_kernel(dtype))
+        """The pyramid level kernel reading ``dtype``, loaded on this device
+        (a thread per row on the CPU, per texel on CUDA)."""
+        return self._loaded_kernel(self.kernels.pyramid_kernel(dtype, rows=self._on_cpu))
 
     def pyramid(self, sources, height, width, channels):
         """The :class:`~.pyramid.DevicePyramid` of ``sources`` ((Warp array, first row) of H × W
@@ -465,9 +467,11 @@ class DeviceWarp:
 
     The buffers are the backend's kept ones (on CUDA), so the job is valid
     until the next call on the backend; use it from one thread. An
-    antialiased job builds the image's pyramid when it is made and reads it
-    in every launch: it warps the image as it was then (as on CUDA, where
-    the image is copied then); make a new job after changing the image.
+    antialiased job takes the image's pyramid when it is made (a Warp
+    array's built then, a numpy image's kept across calls while its pixels
+    are unchanged: :class:`~.pyramid.HostPyramids`) and reads it in every
+    launch: it warps the image as it was then (as on CUDA, where the image
+    is copied then); make a new job after changing the image.
     """
 
     def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False, out=None):
@@ -495,7 +499,9 @@ class DeviceWarp:
         self._pyramid = be.no_pyramid
         if antialias:  # one kernel for every map, order and mode, which it reads at run time
             self._kernel = be.image_kernel(None, None, None, None, dtype, antialias=True)
-            self._pyramid = be.pyramid([(self._src, 0)], image.shape[0], image.shape[1], channels).args
+            pyramid = (be.pyramid([(self._src, 0)], *image.shape) if resident
+                       else be.host_pyramids.get(be, image, self._src))
+            self._pyramid = pyramid.args
         self._antialias = antialias
         self._block = None
 

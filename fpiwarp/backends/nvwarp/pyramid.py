@@ -13,6 +13,7 @@ where every image of a launch reads one pyramid (a batch of one source).
 import numpy as np
 
 from ...sampling.pyramid import level_sizes
+from ..lru import LruCache
 
 
 class DevicePyramid:
@@ -48,10 +49,43 @@ class DevicePyramid:
                 (h, w), (h2, w2) = sizes[k - 1], sizes[k]
                 kernel = level1 if k == 1 else upper
                 dst0 = base + int(table[k][0])
-                backend._launch(kernel, h2, w2, [below, below0, h, w, self.array, dst0])
+                backend.launch_image(kernel, h2, w2, [below, below0, h, w, self.array, dst0, w2])
                 below, below0 = self.array, dst0
 
     @property
     def args(self):
         """The kernels' (pyramid, levels) arguments."""
         return [self.array, self.levels]
+
+
+#: Host sources whose pyramids a backend keeps across calls.
+KEPT_SOURCES = 2
+
+
+class HostPyramids(LruCache):
+    """The pyramids of the last :data:`KEPT_SOURCES` host (numpy) sources,
+    kept across calls so that many maps over one image (an animation, a
+    :class:`fpiwarp.Warper` per frame, repeated previews) build its levels
+    once. A kept pyramid serves a call only while the source's pixels equal
+    the copy of them kept with it (a comparison: a fraction of a
+    millisecond for a 1080p RGB picture, where a build takes tens), so a
+    writeable array changed in place gets new levels, never old ones."""
+
+    def __init__(self, size=KEPT_SOURCES):
+        super().__init__(size)
+
+    def get(self, backend, image, src):
+        """The :class:`DevicePyramid` of numpy ``image`` (H, W, C), ``src``
+        being its array on the device."""
+        key = (image.__array_interface__["data"][0], image.shape, image.strides, image.dtype.str)
+        made = []
+
+        def make():
+            made.append(True)
+            return [image.copy(), backend.pyramid([(src, 0)], *image.shape)]
+
+        entry = self.lookup(key, make)
+        if not made and not np.array_equal(entry[0], image, equal_nan=image.dtype.kind == "f"):
+            np.copyto(entry[0], image)
+            entry[1] = backend.pyramid([(src, 0)], *image.shape)
+        return entry[1]
