@@ -220,26 +220,27 @@ def _make_image_kernel(spec):
     return wp.kernel(warp_image, enable_backward=False, module=_module_name(label, spec))
 
 
-def pyramid_kernel(dtype, rows=False):
+def pyramid_kernel(dtype, rows=False, channels=None):
     """The kernel making one pyramid level from the one below it (source
     dtype ``dtype`` for level 1, "float32" above), made once per process:
     arguments (src (rows, W, C), first row, rows, columns of the level
     below; dst (rows, W', C) float32, first row, columns of the level;
     first row of the launch), launched over the level's (rows, columns),
     or its rows with ``rows`` (a thread per row, as the image kernels on
-    Warp's CPU device). Texel (i, j) of the level is
+    Warp's CPU device) and for ``channels`` channels (None: the arrays').
+    Texel (i, j) of the level is
     :func:`~.sample.level_texel` of texels 2i, 2i + 1 and 2j, 2j + 1
     below, an index past the last row or column clamped to it
     (:mod:`fpiwarp.sampling.pyramid`)."""
     name = np.dtype(dtype).name
     if name not in DTYPES:
         raise ValueError(f"no pyramid kernel for dtype {name}; the kernels read {sorted(DTYPES)}")
-    return _cached(("pyramid", name, bool(rows)), _make_pyramid_kernel)
+    return _cached(("pyramid", name, bool(rows), None if channels is None else int(channels)), _make_pyramid_kernel)
 
 
 def _make_pyramid_kernel(key):
     T = wp.dtype_from_numpy(np.dtype(key[1]))
-    ROWS = key[2]
+    ROWS, CHANNELS = key[2], key[3]
 
     def halve(
         src: wp.array3d(dtype=T), src0: int, h: int, w: int, dst: wp.array3d(dtype=float), dst0: int, w2: int,
@@ -255,15 +256,18 @@ def _make_pyramid_kernel(key):
             j_last = j + 1
         r0 = src0 + 2 * i
         r1 = src0 + wp.min(2 * i + 1, h - 1)
-        channels = src.shape[2]
         while j < j_last:
             c0 = 2 * j
             c1 = wp.min(2 * j + 1, w - 1)
-            for c in range(channels):
-                dst[dst0 + i, j, c] = level_texel(src, r0, r1, c0, c1, c)
+            if wp.static(CHANNELS is None):
+                for c in range(src.shape[2]):
+                    dst[dst0 + i, j, c] = level_texel(src, r0, r1, c0, c1, c)
+            else:
+                for c in range(wp.static(CHANNELS)):  # unrolled
+                    dst[dst0 + i, j, c] = level_texel(src, r0, r1, c0, c1, c)
             j = j + 1
 
-    label = f"pyramid_{key[1]}{'_rows' if ROWS else ''}"
+    label = f"pyramid_{key[1]}_c{CHANNELS}{'_rows' if ROWS else ''}"
     halve.__name__ = halve.__qualname__ = label
     return wp.kernel(halve, enable_backward=False, module=_module_name(label, key))
 

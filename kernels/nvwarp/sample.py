@@ -3,16 +3,21 @@
 Mirrors :mod:`fpiwarp.sampling.sampler` (orders 0/1/3, border modes,
 non-finite positions or positions beyond COORD_LIMIT give ``cval``,
 integer outputs rounded with floor(v + 0.5) and clipped) and
-:mod:`fpiwarp.sampling.antialias` (nx × ny sub-samples of the footprint
-spanned by the Jacobian's columns, each sampled like one position,
-averaged). The functions are generic in the pixel type (Warp makes one
+:mod:`fpiwarp.sampling.antialias` (the footprint spanned by the
+Jacobian's columns: its shorter edge picks a level of the source pyramid,
+:mod:`fpiwarp.sampling.pyramid`, where nx × ny sub-samples are each
+sampled like one position and averaged, blended into the next level in
+the last AA_BLEND of each octave; level 0 is the source in its dtype with
+the call's order, levels >= 1 float32, bilinear, each with the border
+mode on its own size). The functions are generic in the pixel type (Warp makes one
 overload per dtype) and take the order, border mode and channel count as
 arguments: a kernel made for one kind of sampling passes constants
 (:mod:`fpiwarp.kernels.nvwarp.factory`, through ``wp.static``) and the
 compiler drops what that kind does not use.
 
 An image is ``h`` rows starting at row ``src0`` of an (rows, W, C) array,
-so the images of a batch are row offsets into one (N·H, W, C) array.
+so the images of a batch are row offsets into one (N·H, W, C) array, and
+the levels of their pyramids row offsets into one float32 array.
 """
 
 from typing import Any

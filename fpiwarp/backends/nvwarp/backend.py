@@ -20,6 +20,12 @@ else the CPUs this process may use.
 On the CPU the kernels read and write the caller's numpy arrays in place
 (no copies); on CUDA the device buffers are kept and reused while calls
 keep the same shape.
+
+Antialiased warps read the source's pyramid (:mod:`.pyramid`), built on
+the device by a Warp kernel: once per prepared job (:class:`DeviceWarp`)
+and per batch, and for numpy sources kept across calls while the pixels
+are unchanged (:class:`~.pyramid.HostPyramids`), so many maps over one
+image build its levels once.
 """
 
 import contextlib
@@ -268,10 +274,10 @@ class Backend:
         """The point kernel (``sets``: of (N, P) point sets), loaded on this device."""
         return self._loaded_kernel(self.kernels.point_kernel(self.kernels.PointKernel(sets=sets)))
 
-    def pyramid_kernel(self, dtype):
-        """The pyramid level kernel reading ``dtype``, loaded on this device
-        (a thread per row on the CPU, per texel on CUDA)."""
-        return self._loaded_kernel(self.kernels.pyramid_kernel(dtype, rows=self._on_cpu))
+    def pyramid_kernel(self, dtype, channels):
+        """The pyramid level kernel reading ``dtype`` of ``channels`` channels, loaded on this
+        device (a thread per row on the CPU, per texel on CUDA)."""
+        return self._loaded_kernel(self.kernels.pyramid_kernel(dtype, rows=self._on_cpu, channels=channels))
 
     def pyramid(self, sources, height, width, channels):
         """The :class:`~.pyramid.DevicePyramid` of ``sources`` ((Warp array, first row) of H × W

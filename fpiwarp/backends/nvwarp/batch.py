@@ -9,7 +9,9 @@ group's blocks stacked in one (B, rows, 4) array (rows: the longest
 block's; one map for all images is one block that every image reads).
 N maps of one kind are one launch; k kinds are k launches. Antialiased
 batches and point sets run the kernels that read each stage's kind from
-the block (as single calls do), one launch for any mix of kinds. On the
+the block (as single calls do), one launch for any mix of kinds;
+antialiased batches first build each image's pyramid, one for a stack of
+one source (stride 0 between its images: :func:`pyramid_sources`). On the
 CPU device every launch is split, like one tall image, into one band of
 rows per thread of the backend's pool, and image kernels run a thread per
 output row.

@@ -40,8 +40,9 @@ class DevicePyramid:
     def _build(self, backend, sources, sizes, table, rows):
         if self.top == 0:
             return
-        level1 = backend.pyramid_kernel(np.dtype(backend._wp.dtype_to_numpy(sources[0][0].dtype)))
-        upper = backend.pyramid_kernel(np.float32)
+        channels = self.array.shape[2]
+        level1 = backend.pyramid_kernel(np.dtype(backend._wp.dtype_to_numpy(sources[0][0].dtype)), channels)
+        upper = backend.pyramid_kernel(np.float32, channels)
         for n, (src, src0) in enumerate(sources):
             base = n * rows
             below, below0 = src, src0

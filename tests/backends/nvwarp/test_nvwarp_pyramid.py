@@ -102,13 +102,20 @@ def test_a_batch_of_one_source_builds_one_pyramid(warp, monkeypatch):
         assert np.array_equal(got, fpiwarp.warp_image(im, m, (16, 20), antialias=True, backend="warp"))
 
 
-def test_an_image_changed_in_place_is_warped_as_it_is_now(warp):
-    """Two calls on one writeable host array, changed in place between
-    them: the second call's levels are those of the new pixels."""
+def test_calls_on_one_host_image_share_its_pyramid_until_it_changes(warp, monkeypatch):
+    """warp_image calls on one numpy image (an animation, a Warper per
+    frame) build its levels once; changed in place, it gets new levels:
+    the next call's picture is that of the new pixels."""
     img = make_image((64, 80, 3), np.uint8, seed=6)
+    built = _count_builds(monkeypatch, warp)
     first = fpiwarp.warp_image(img, SHRINK, (12, 16), antialias=True, backend="warp")
+    again = [fpiwarp.warp_image(img, m, (12, 16), antialias=True, backend="warp") for m in (ANISO, SHRINK)]
+    assert len(built) == 1 and np.array_equal(again[1], first)
+    assert_images_agree(again[0], fpiwarp.warp_image(img, ANISO, (12, 16), antialias=True, backend="numpy"),
+                        np.uint8)
     img[:] = 255 - img
     second = fpiwarp.warp_image(img, SHRINK, (12, 16), antialias=True, backend="warp")
+    assert len(built) == 2
     assert_images_agree(second, fpiwarp.warp_image(img, SHRINK, (12, 16), antialias=True, backend="numpy"),
                         np.uint8)
     assert not np.array_equal(first, second)
