@@ -61,6 +61,9 @@ class DevicePyramid:
 
 #: Host sources whose pyramids a backend keeps across calls.
 KEPT_SOURCES = 2
+#: Larger host sources get a pyramid per call (keeping one means keeping a
+#: copy of the source's pixels too).
+KEPT_SOURCE_BYTES = 128 << 20
 
 
 class HostPyramids(LruCache):
@@ -69,8 +72,9 @@ class HostPyramids(LruCache):
     :class:`fpiwarp.Warper` per frame, repeated previews) build its levels
     once. A kept pyramid serves a call only while the source's pixels equal
     the copy of them kept with it (a comparison: a fraction of a
-    millisecond for a 1080p RGB picture, where a build takes tens), so a
-    writeable array changed in place gets new levels, never old ones."""
+    millisecond for a 1080p RGB picture, tens of times less than a build), so a
+    writeable array changed in place gets new levels, never old ones.
+    Sources over :data:`KEPT_SOURCE_BYTES` are not kept."""
 
     def __init__(self, size=KEPT_SOURCES):
         super().__init__(size)
@@ -78,6 +82,8 @@ class HostPyramids(LruCache):
     def get(self, backend, image, src):
         """The :class:`DevicePyramid` of numpy ``image`` (H, W, C), ``src``
         being its array on the device."""
+        if image.nbytes > KEPT_SOURCE_BYTES:
+            return backend.pyramid([(src, 0)], *image.shape)
         key = (image.__array_interface__["data"][0], image.shape, image.strides, image.dtype.str)
         made = []
 
