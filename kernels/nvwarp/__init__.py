@@ -9,10 +9,12 @@ language has one of each, mirroring the numpy reference):
   one stage function (value and, where asked, Wirtinger derivatives) and
   the walk over a block's stages;
 * :mod:`.sample`: border rules, the one sampler (orders 0/1/3),
-  antialiasing's footprint, the pixel writer;
+  antialiasing's footprint over the source pyramid, a pyramid texel, the
+  pixel writer;
 * :mod:`.factory`: every image and point kernel, specialized by key (kind
   of map, order, mode, channels, dtype, layout, rows, antialias), made
-  once per process and cached on disk by Warp;
+  once per process and cached on disk by Warp, and the pyramid level
+  kernel;
 * :mod:`.points`: the device-array helpers that widen float32 points to
   the float64 the point kernels read, and narrow them back.
 

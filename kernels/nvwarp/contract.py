@@ -41,3 +41,7 @@ AA_SLACK = wp.constant(CONTRACT["AA_SLACK"])
 AA_SPACING = wp.constant(CONTRACT["AA_SPACING"])
 AA_KNEE_TAPS = wp.constant(CONTRACT["AA_KNEE_TAPS"])
 AA_FAR_SPACING = wp.constant(CONTRACT["AA_FAR_SPACING"])
+# Antialiasing over the source pyramid (fpiwarp.sampling.pyramid).
+AA_LEVEL_SPAN = wp.constant(CONTRACT["AA_LEVEL_SPAN"])
+AA_BLEND = wp.constant(CONTRACT["AA_BLEND"])
+AA_MAX_LEVEL = wp.constant(CONTRACT["AA_MAX_LEVEL"])

@@ -20,7 +20,9 @@ fresh closure per call).
 
 One image is a batch of one: every image kernel takes (blocks (B, rows)
 vec4, images (K,) int, img, out, H, oh, step, order, mode, cval vec4,
-first row). Rows [k·oh, (k + 1)·oh) of the launch are output image
+pyramid, levels, first row); the pyramid (float32 levels >= 1 of every
+source, :func:`pyramid_kernel`) and its level table are read by
+antialiased kernels only (plain ones get a placeholder). Rows [k·oh, (k + 1)·oh) of the launch are output image
 ``images[k]`` warped by block ``k·step`` (step 0: one block for all, 1:
 one each), so that bands of rows split a batch like one tall image. With
 ``rows`` a thread runs along one output row (Warp's CPU device: the
@@ -35,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
-from .sample import in_range, sample, sample_footprint, store_pixel
+from .sample import in_range, level_texel, sample, sample_footprint, store_pixel
 from .stage import then_stage, walk
 
 _cache = {}
@@ -155,6 +157,8 @@ def _make_image_kernel(spec):
         order: int,
         mode: int,
         cval: wp.vec4,
+        pyr: wp.array3d(dtype=float),
+        levels: wp.array(dtype=wp.vec3i),
         row0: int,
     ):
         if wp.static(ROWS):
@@ -206,14 +210,66 @@ def _make_image_kernel(spec):
             v = cval
             if in_range(s):
                 if wp.static(AA):
-                    v = sample_footprint(src, src0, h, s, dz, dzb, order, mode, cval, channels)
+                    v = sample_footprint(src, src0, h, pyr, levels, n, s, dz, dzb, order, mode, cval, channels)
                 else:
-                    v = sample(src, src0, h, s, order, mode, cval, channels)
+                    v = sample(src, src0, h, src.shape[1], s, order, mode, cval, channels)
             store_pixel(dst, oy, x, v, channels, wp.static(TOP))
             x = x + 1
 
     warp_image.__name__ = warp_image.__qualname__ = label
     return wp.kernel(warp_image, enable_backward=False, module=_module_name(label, spec))
+
+
+def pyramid_kernel(dtype, rows=False, channels=None):
+    """The kernel making one pyramid level from the one below it (source
+    dtype ``dtype`` for level 1, "float32" above), made once per process:
+    arguments (src (rows, W, C), first row, rows, columns of the level
+    below; dst (rows, W', C) float32, first row, columns of the level;
+    first row of the launch), launched over the level's (rows, columns),
+    or its rows with ``rows`` (a thread per row, as the image kernels on
+    Warp's CPU device) and for ``channels`` channels (None: the arrays').
+    Texel (i, j) of the level is
+    :func:`~.sample.level_texel` of texels 2i, 2i + 1 and 2j, 2j + 1
+    below, an index past the last row or column clamped to it
+    (:mod:`fpiwarp.sampling.pyramid`)."""
+    name = np.dtype(dtype).name
+    if name not in DTYPES:
+        raise ValueError(f"no pyramid kernel for dtype {name}; the kernels read {sorted(DTYPES)}")
+    return _cached(("pyramid", name, bool(rows), None if channels is None else int(channels)), _make_pyramid_kernel)
+
+
+def _make_pyramid_kernel(key):
+    T = wp.dtype_from_numpy(np.dtype(key[1]))
+    ROWS, CHANNELS = key[2], key[3]
+
+    def halve(
+        src: wp.array3d(dtype=T), src0: int, h: int, w: int, dst: wp.array3d(dtype=float), dst0: int, w2: int,
+        row0: int,
+    ):
+        if wp.static(ROWS):
+            i = wp.tid() + row0
+            j = wp.int32(0)
+            j_last = w2
+        else:
+            i, j = wp.tid()
+            i = i + row0
+            j_last = j + 1
+        r0 = src0 + 2 * i
+        r1 = src0 + wp.min(2 * i + 1, h - 1)
+        while j < j_last:
+            c0 = 2 * j
+            c1 = wp.min(2 * j + 1, w - 1)
+            if wp.static(CHANNELS is None):
+                for c in range(src.shape[2]):
+                    dst[dst0 + i, j, c] = level_texel(src, r0, r1, c0, c1, c)
+            else:
+                for c in range(wp.static(CHANNELS)):  # unrolled
+                    dst[dst0 + i, j, c] = level_texel(src, r0, r1, c0, c1, c)
+            j = j + 1
+
+    label = f"pyramid_{key[1]}_c{CHANNELS}{'_rows' if ROWS else ''}"
+    halve.__name__ = halve.__qualname__ = label
+    return wp.kernel(halve, enable_backward=False, module=_module_name(label, key))
 
 
 def _make_point_kernel(spec):

@@ -3,16 +3,21 @@
 Mirrors :mod:`fpiwarp.sampling.sampler` (orders 0/1/3, border modes,
 non-finite positions or positions beyond COORD_LIMIT give ``cval``,
 integer outputs rounded with floor(v + 0.5) and clipped) and
-:mod:`fpiwarp.sampling.antialias` (nx × ny sub-samples of the footprint
-spanned by the Jacobian's columns, each sampled like one position,
-averaged). The functions are generic in the pixel type (Warp makes one
+:mod:`fpiwarp.sampling.antialias` (the footprint spanned by the
+Jacobian's columns: its shorter edge picks a level of the source pyramid,
+:mod:`fpiwarp.sampling.pyramid`, where nx × ny sub-samples are each
+sampled like one position and averaged, blended into the next level in
+the last AA_BLEND of each octave; level 0 is the source in its dtype with
+the call's order, levels >= 1 float32, bilinear, each with the border
+mode on its own size). The functions are generic in the pixel type (Warp makes one
 overload per dtype) and take the order, border mode and channel count as
 arguments: a kernel made for one kind of sampling passes constants
 (:mod:`fpiwarp.kernels.nvwarp.factory`, through ``wp.static``) and the
 compiler drops what that kind does not use.
 
 An image is ``h`` rows starting at row ``src0`` of an (rows, W, C) array,
-so the images of a batch are row offsets into one (N·H, W, C) array.
+so the images of a batch are row offsets into one (N·H, W, C) array, and
+the levels of their pyramids row offsets into one float32 array.
 """
 
 from typing import Any
@@ -20,8 +25,10 @@ from typing import Any
 import warp as wp
 
 from .contract import (
+    AA_BLEND,
     AA_FAR_SPACING,
     AA_KNEE_TAPS,
+    AA_LEVEL_SPAN,
     AA_MAX_TAPS,
     AA_SLACK,
     AA_SPACING,
@@ -161,12 +168,12 @@ def cubic_taps(
 
 @wp.func
 def sample(
-    img: wp.array3d(dtype=Any), src0: int, h: int, s: wp.vec2, order: int, mode: int, cval: wp.vec4,
+    img: wp.array3d(dtype=Any), src0: int, h: int, w: int, s: wp.vec2, order: int, mode: int, cval: wp.vec4,
     channels: int,
 ):
-    """sampler.sample of the first ``channels`` channels at s (in range):
+    """sampler.sample of the first ``channels`` channels at s (in range) of
+    the h × w image at rows [src0, src0 + h), columns [0, w) of ``img``:
     the taps' indices and weights computed once for all channels."""
-    w = img.shape[1]
     sx = clip_coord(s[0])
     sy = clip_coord(s[1])
     if order == 0:
@@ -228,33 +235,96 @@ def tap_count(length: float):
 
 
 @wp.func
-def sample_footprint(
-    img: wp.array3d(dtype=Any), src0: int, h: int, s: wp.vec2, dz: wp.vec2, dzb: wp.vec2, order: int,
-    mode: int, cval: wp.vec4, channels: int,
+def edge_length(e: wp.vec2):
+    return wp.sqrt(e[0] * e[0] + e[1] * e[1])
+
+
+@wp.func
+def footprint_mean(
+    img: wp.array3d(dtype=Any), src0: int, h: int, w: int, level: int, s: wp.vec2, ex: wp.vec2, ey: wp.vec2,
+    order: int, mode: int, cval: wp.vec4, channels: int,
 ):
-    """antialias.sample_antialiased at s (in range), whose map has the
-    Wirtinger derivatives dz, dzb there: one :func:`sample` where the
-    footprint is small, else the mean of nx × ny sub-samples."""
-    ex = dz + dzb
-    ey = wp.vec2(dzb[1] - dz[1], dz[0] - dzb[0])
-    nx = tap_count(wp.sqrt(ex[0] * ex[0] + ex[1] * ex[1]))
-    ny = tap_count(wp.sqrt(ey[0] * ey[0] + ey[1] * ey[1]))
-    if nx == 1 and ny == 1:
-        return sample(img, src0, h, s, order, mode, cval, channels)
+    """antialias.supersample at pyramid level ``level``, whose h × w texels
+    are rows [src0, src0 + h) of ``img``: nx × ny sub-samples (tap_count of
+    the edges in level texels) at source positions s + ex·sub + ey·t, each
+    read at its level coordinate (p + 0.5) / 2^level - 0.5 with ``order``
+    (cval beyond COORD_LIMIT), averaged."""
+    inv_scale = 1.0 / float(1 << level)
+    nx = tap_count(edge_length(ex) * inv_scale)
+    ny = tap_count(edge_length(ey) * inv_scale)
     fnx = float(nx)
     fny = float(ny)
     inv = 1.0 / (fnx * fny)
     acc = wp.vec4(0.0)
+    half = wp.vec2(0.5, 0.5)
     for j in range(ny):
         t = (2.0 * float(j) + 1.0 - fny) / (2.0 * fny)
         for i in range(nx):
             sub = (2.0 * float(i) + 1.0 - fnx) / (2.0 * fnx)
             p = s + (ex * sub + ey * t)
+            if level > 0:
+                p = (p + half) * inv_scale - half
             if in_range(p):
-                acc = acc + sample(img, src0, h, p, order, mode, cval, channels)
+                acc = acc + sample(img, src0, h, w, p, order, mode, cval, channels)
             else:
                 acc = acc + cval
     return acc * inv
+
+
+@wp.func
+def level_mean(
+    img: wp.array3d(dtype=Any), src0: int, h: int, pyr: wp.array3d(dtype=float), levels: wp.array(dtype=wp.vec3i),
+    n: int, k: int, s: wp.vec2, ex: wp.vec2, ey: wp.vec2, order: int, mode: int, cval: wp.vec4, channels: int,
+):
+    """The footprint's mean at level k: the source itself (its dtype, the
+    call's order) for k = 0, else image n's level k of the float32 pyramid
+    ``pyr`` (:func:`fpiwarp.kernels.nvwarp.factory.pyramid_kernel`), bilinearly.
+    ``levels[k]`` is (first row, rows, columns) of level k in one image's
+    pyramid, ``levels[0][0]`` the rows between images' pyramids (0: one
+    pyramid for all)."""
+    if k == 0:
+        return footprint_mean(img, src0, h, img.shape[1], 0, s, ex, ey, order, mode, cval, channels)
+    lv = levels[k]
+    return footprint_mean(pyr, n * levels[0][0] + lv[0], lv[1], lv[2], k, s, ex, ey, 1, mode, cval, channels)
+
+
+@wp.func
+def sample_footprint(
+    img: wp.array3d(dtype=Any), src0: int, h: int, pyr: wp.array3d(dtype=float), levels: wp.array(dtype=wp.vec3i),
+    n: int, s: wp.vec2, dz: wp.vec2, dzb: wp.vec2, order: int, mode: int, cval: wp.vec4, channels: int,
+):
+    """antialias.sample_antialiased at s (in range), whose map has the
+    Wirtinger derivatives dz, dzb there: one :func:`sample` where both
+    level-0 counts are 1, else the footprint's mean at pyramid level k
+    (antialias.pyramid_levels: the shorter edge picks it), blended with
+    weight u into level k + 1 in the last AA_BLEND of each octave."""
+    ex = dz + dzb
+    ey = wp.vec2(dzb[1] - dz[1], dz[0] - dzb[0])
+    lx = edge_length(ex)
+    ly = edge_length(ey)
+    if tap_count(lx) == 1 and tap_count(ly) == 1:
+        return sample(img, src0, h, img.shape[1], s, order, mode, cval, channels)
+    top = levels.shape[0] - 1
+    short = wp.min(lx, ly)
+    if lx != lx or ly != ly:  # NaN counts as 0 (numpy's minimum keeps a NaN, Warp's min would not)
+        short = 0.0
+    lod = wp.clamp(wp.log2(wp.max(short * (1.0 + AA_SLACK) / AA_LEVEL_SPAN, 1.0)), 0.0, float(top))
+    k = int(wp.floor(lod))
+    u = wp.clamp((lod - float(k) - 1.0 + AA_BLEND) / AA_BLEND, 0.0, 1.0)
+    v = level_mean(img, src0, h, pyr, levels, n, k, s, ex, ey, order, mode, cval, channels)
+    if k < top and u > 0.0:
+        v = (1.0 - u) * v + u * level_mean(img, src0, h, pyr, levels, n, k + 1, s, ex, ey, order, mode, cval,
+                                           channels)
+    return v
+
+
+@wp.func
+def level_texel(src: wp.array3d(dtype=Any), r0: int, r1: int, c0: int, c1: int, c: int):
+    """pyramid.halve's texel: the mean of rows r0, r1 and columns c0, c1 of
+    channel c, as ((r0c0 + r0c1) + (r1c0 + r1c1)) / 4 in float32."""
+    top = float(src[r0, c0, c]) + float(src[r0, c1, c])
+    bottom = float(src[r1, c0, c]) + float(src[r1, c1, c])
+    return 0.25 * (top + bottom)
 
 
 # --- writing a pixel --------------------------------------------------------------

@@ -20,6 +20,12 @@ else the CPUs this process may use.
 On the CPU the kernels read and write the caller's numpy arrays in place
 (no copies); on CUDA the device buffers are kept and reused while calls
 keep the same shape.
+
+Antialiased warps read the source's pyramid (:mod:`.pyramid`), built on
+the device by a Warp kernel: once per prepared job (:class:`DeviceWarp`)
+and per batch, and for numpy sources kept across calls while the pixels
+are unchanged (:class:`~.pyramid.HostPyramids`), so many maps over one
+image build its levels once.
 """
 
 import contextlib
@@ -39,6 +45,7 @@ from ...block import MAX_ROWS, describe
 from ...block.sampling_rules import MODES
 from ...errors import ArgumentError
 from .prepared import BoundMap, JobCache
+from .pyramid import DevicePyramid, HostPyramids
 
 #: Environment variable naming the Warp device, e.g. "cpu" or "cuda:0".
 DEVICE_ENV = "FPIWARP_WARP_DEVICE"
@@ -226,8 +233,12 @@ class Backend:
         self._block_staging = self._block if self._on_cpu else wp.zeros_like(self._block, device="cpu", pinned=True)
         self._block_host = self._block_staging.numpy()[0]  # a (rows, 4) float32 view of host memory
         self.first = wp.zeros(1, dtype=wp.int32, device=self.device)
+        # what plain image kernels get for the pyramid arguments only antialiased ones read
+        self.no_pyramid = [wp.zeros((1, 1, 1), dtype=wp.float32, device=self.device),
+                           wp.zeros(1, dtype=wp.vec3i, device=self.device)]
         self._buffers = {}
         self._jobs = JobCache()  # prepared jobs of plain warp_image calls
+        self.host_pyramids = HostPyramids()  # antialiasing's pyramids of recent host sources
         self.block_kind = None  # what the kernels specialize on, of the block uploaded last
         self._batch_runner = None  # the batch kernels, loaded on first use
 
@@ -262,6 +273,16 @@ class Backend:
     def point_kernel(self, sets=False):
         """The point kernel (``sets``: of (N, P) point sets), loaded on this device."""
         return self._loaded_kernel(self.kernels.point_kernel(self.kernels.PointKernel(sets=sets)))
+
+    def pyramid_kernel(self, dtype, channels):
+        """The pyramid level kernel reading ``dtype`` of ``channels`` channels, loaded on this
+        device (a thread per row on the CPU, per texel on CUDA)."""
+        return self._loaded_kernel(self.kernels.pyramid_kernel(dtype, rows=self._on_cpu, channels=channels))
+
+    def pyramid(self, sources, height, width, channels):
+        """The :class:`~.pyramid.DevicePyramid` of ``sources`` ((Warp array, first row) of H × W
+        images), built on this device now."""
+        return DevicePyramid(self, sources, height, width, channels)
 
     def _loaded_kernel(self, kernel):
         if kernel.key not in self._loaded:
@@ -451,7 +472,12 @@ class DeviceWarp:
     """One image on the device, warped by :meth:`set_map` then :meth:`launch`.
 
     The buffers are the backend's kept ones (on CUDA), so the job is valid
-    until the next call on the backend; use it from one thread.
+    until the next call on the backend; use it from one thread. An
+    antialiased job takes the image's pyramid when it is made (a Warp
+    array's built then, a numpy image's kept across calls while its pixels
+    are unchanged: :class:`~.pyramid.HostPyramids`) and reads it in every
+    launch: it warps the image as it was then (as on CUDA, where the image
+    is copied then); make a new job after changing the image.
     """
 
     def __init__(self, backend, image, output_shape, order, mode, cval, antialias=False, out=None):
@@ -476,8 +502,12 @@ class DeviceWarp:
         self._kernel = None  # chosen by set_map, for the map's kind
         self._tail = [image.shape[0], oh, 0, int(order), MODES.index(mode), wp.vec4(*cv.tolist())]
         self._sampling = (int(order), MODES.index(mode), channels, dtype)
+        self._pyramid = be.no_pyramid
         if antialias:  # one kernel for every map, order and mode, which it reads at run time
             self._kernel = be.image_kernel(None, None, None, None, dtype, antialias=True)
+            pyramid = (be.pyramid([(self._src, 0)], *image.shape) if resident
+                       else be.host_pyramids.get(be, image, self._src))
+            self._pyramid = pyramid.args
         self._antialias = antialias
         self._block = None
 
@@ -493,7 +523,7 @@ class DeviceWarp:
         """Run the kernel over the output (on CUDA without waiting for it)."""
         oh, ow = self.output_shape
         self.backend.launch_image(self._kernel, oh, ow, [self._block, self.backend.first, self._src, self._out,
-                                                         *self._tail])
+                                                         *self._tail, *self._pyramid])
 
     def finish(self):
         """Wait until the launched kernels are done."""

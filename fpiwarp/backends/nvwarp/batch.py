@@ -9,7 +9,9 @@ group's blocks stacked in one (B, rows, 4) array (rows: the longest
 block's; one map for all images is one block that every image reads).
 N maps of one kind are one launch; k kinds are k launches. Antialiased
 batches and point sets run the kernels that read each stage's kind from
-the block (as single calls do), one launch for any mix of kinds. On the
+the block (as single calls do), one launch for any mix of kinds;
+antialiased batches first build each image's pyramid, one for a stack of
+one source (stride 0 between its images: :func:`pyramid_sources`). On the
 CPU device every launch is split, like one tall image, into one band of
 rows per thread of the backend's pool, and image kernels run a thread per
 output row.
@@ -89,6 +91,19 @@ def row_view(wp, arr):
     return wp.array(ptr=arr.ptr, dtype=arr.dtype, shape=(n * h, w, c), strides=s[1:], device=arr.device)
 
 
+def pyramid_sources(stack, rows):
+    """The images a batch's pyramid is built from: (Warp array, first row)
+    each, from the (N, H, W, C) ``stack`` or its (N·H, W, C) view ``rows``
+    (None for strides that have none); one for a stack of one source
+    (stride 0 between images: one pyramid for every map)."""
+    n, h = stack.shape[0], stack.shape[1]
+    if n > 1 and stack.strides[0] == 0:
+        return [(stack[0], 0)]
+    if rows is not None:
+        return [(rows, i * h) for i in range(n)]
+    return [(stack[i], 0) for i in range(n)]
+
+
 class BatchRunner:
     """Batches on one Warp backend (its module ``wp``, device, kernels and
     banded launchers)."""
@@ -155,16 +170,18 @@ class BatchRunner:
         arrays = [src, dst] if strided else list(rows)
         tail = [h, oh]
         sampling = (int(order), MODES.index(mode))
+        pyramid = be.no_pyramid
         if antialias:  # one launch for every kind, as for one image
             blocks = stacked_blocks(inverses(transforms))
             groups = [(None, blocks, np.arange(n, dtype=np.int32))]
+            pyramid = be.pyramid(pyramid_sources(src, rows[0]), h, src.shape[2], c).args
         else:
             groups = kind_groups(inverses(transforms), n)
         for key, blocks, images in groups:
             spec = (None, None, None) if antialias else (key, *sampling)
             kernel = be.image_kernel(*spec, None if antialias else c, dtype, strided=strided, antialias=antialias)
             inputs = [self._array(blocks, wp.vec4), self._array(images, wp.int32), *arrays, *tail,
-                      int(len(blocks) > 1), *sampling, wp.vec4(*cv.tolist())]
+                      int(len(blocks) > 1), *sampling, wp.vec4(*cv.tolist()), *pyramid]
             be.launch_image(kernel, len(images) * oh, ow, inputs, self.launch)
         return dst
 

@@ -64,8 +64,9 @@ class WarpJob:
         out = self._output()
         tail = [image.shape[0], oh, 0, int(order), mode, wp.vec4(*cv.tolist())]
         self._launches = [
-            wp.launch(kernel, dim=be.image_dims(r1 - r0, ow), inputs=[block, be.first, src, out[1], *tail, r0],
-                      device=be.device, record_cmd=True)
+            wp.launch(kernel, dim=be.image_dims(r1 - r0, ow),
+                      inputs=[block, be.first, src, out[1], *tail, *be.no_pyramid, r0], device=be.device,
+                      record_cmd=True)
             for r0, r1 in itertools.pairwise(cuts)
         ]
 

@@ -328,11 +328,13 @@ def _launch_both_layouts(warp, img, transform, shape, order, mode, cval, antiali
     src = wp.array(img, dtype=scalar, device=warp.device)
     cv = np.zeros(4, np.float32)
     cv[: img.shape[2]] = cval
+    pyramid = warp.pyramid([(src, 0)], *img.shape).args if antialias else warp.no_pyramid
     outs = []
     for rows in (True, False):
         spec = factory.image_spec(kind, *static, img.dtype, rows=rows, antialias=antialias)
         out = wp.zeros((*shape, img.shape[2]), dtype=scalar, device=warp.device)
-        inputs = [blk, first, src, out, img.shape[0], shape[0], 0, order, MODES.index(mode), wp.vec4(*cv.tolist()), 0]
+        inputs = [blk, first, src, out, img.shape[0], shape[0], 0, order, MODES.index(mode), wp.vec4(*cv.tolist()),
+                  *pyramid, 0]
         wp.launch(factory.image_kernel(spec), dim=shape[0] if rows else shape, inputs=inputs, device=warp.device)
         outs.append(out.numpy())
     return outs
