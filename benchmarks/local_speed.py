@@ -6,9 +6,13 @@ against the per-pixel Newton it replaces, in one run.
 The map is speed.py's ``LocalDeformation`` (edges 1 and 3 of a quad over the
 middle of the frame); calls are interleaved round by round (best of
 ``rounds``): the FPI warp, the LocalDeformation with the coarse pass and
-without (``fpiwarp.backends.opencl.prepared.COARSE_PASS`` off when its job
-is made), on the opencl backend, uint8 RGB, order 1. Ratios are to the FPI
-on the same backend. Also the float32 reference's count of spline
+without, uint8 RGB, order 1, on the opencl backend
+(``fpiwarp.backends.opencl.prepared.COARSE_PASS`` off when its job is made)
+and the gl backend, and the gl preview's exact frame (speed.py's: Renderer,
+method "pixel", offscreen, waited for), the gl ones with
+``fpiwarp.backends.gl.coarse.COARSE_PASS`` off during the 'before' calls.
+Ratios are to the FPI on the same backend (the preview's: to the FPI's
+frame). Also the float32 reference's count of spline
 evaluations per pixel of the band (the pixels no region takes) with and
 without the pass: the floor is one value-only evaluation per verified pixel.
 
@@ -22,6 +26,7 @@ import numpy as np
 
 import fpiwarp
 from fpiwarp.backends import get_backend
+from fpiwarp.backends.gl import coarse as gl_coarse
 from fpiwarp.backends.opencl import prepared
 from fpiwarp.block.coarse import coarse_pass, pixel_seeds
 from fpiwarp.block.describe import describe, stage_rows
@@ -41,7 +46,7 @@ from .common import (
     write_json,
     write_text,
 )
-from .speed import local_deformation
+from .speed import _preview_frame, local_deformation
 
 
 def _bound(transform, image, coarse):
@@ -53,6 +58,23 @@ def _bound(transform, image, coarse):
         bound.warp_image(image, image.shape[:2], order=1, mode="constant", cval=(0, 0, 0))
     finally:
         prepared.COARSE_PASS = was
+    return lambda: bound.warp_image(image, image.shape[:2], order=1, mode="constant", cval=(0, 0, 0))
+
+
+def _gl_call(call, coarse):
+    """``call`` with the gl coarse pass on or off (read per draw)."""
+    def run():
+        was, gl_coarse.COARSE_PASS = gl_coarse.COARSE_PASS, coarse
+        try:
+            return call()
+        finally:
+            gl_coarse.COARSE_PASS = was
+    return run
+
+
+def _gl_warp(transform, image):
+    """A warp of ``transform`` bound on gl."""
+    bound = get_backend("gl").bind(transform)
     return lambda: bound.warp_image(image, image.shape[:2], order=1, mode="constant", cval=(0, 0, 0))
 
 
@@ -95,6 +117,12 @@ def run(height, width, rounds):
         "opencl FPI": _bound(fpi, image, True),
         "opencl LocalDeformation, per-pixel Newton (before)": _bound(local, image, False),
         "opencl LocalDeformation, coarse pass (after)": _bound(local, image, True),
+        "gl FPI": _gl_warp(fpi, image),
+        "gl LocalDeformation, per-pixel Newton (before)": _gl_call(_gl_warp(local, image), False),
+        "gl LocalDeformation, coarse pass (after)": _gl_call(_gl_warp(local, image), True),
+        "gl preview frame FPI": _preview_frame(image, fpi),
+        "gl preview frame LocalDeformation, per-pixel Newton (before)": _gl_call(_preview_frame(image, local), False),
+        "gl preview frame LocalDeformation, coarse pass (after)": _gl_call(_preview_frame(image, local), True),
     }
     times, _ = interleaved(calls, rounds)
     return bests(times), evaluations(local, height, width)
@@ -110,9 +138,14 @@ def main(argv=None):
     facts = machine_facts()
     best, evals = run(height, width, args.rounds)
     facts_end = machine_facts(backends=False)
-    fpi = best["opencl FPI"]
+    fpi = {k: best[k] for k in ("opencl FPI", "gl FPI", "gl preview frame FPI")}
+
+    def ratio(name, seconds):  # to the FPI of the same backend (the preview's: its FPI frame)
+        base = max((k for k in fpi if name.startswith(k[:-len("FPI")])), key=len)
+        return fmt_ratio(seconds / fpi[base])
+
     table = markdown_table(["implementation", f"{width}×{height}"],
-                           [[k, f"{fmt_time(v)} ({fmt_ratio(v / fpi)})"] for k, v in best.items()])
+                           [[k, f"{fmt_time(v)} ({ratio(k, v)})"] for k, v in best.items()])
     md = "\n".join([
         "# The coarse pass of a local deformation's warp", "", machine_markdown(facts),
         f"Load average at the end: {facts_end['load_average_1_5_15min']}.", "",

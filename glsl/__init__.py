@@ -33,6 +33,8 @@ WARP_FRAG = "backend/warp.frag"
 #: The mesh path: a source grid moved by the forward map, and its texturing.
 MESH_VERT = "backend/mesh.vert"
 MESH_FRAG = "backend/mesh.frag"
+#: The coarse pass of a Newton map's per-pixel warp (fpiwarp/backends/gl/coarse.py).
+COARSE_FRAG = "backend/coarse.frag"
 #: Point mapping by transform feedback.
 MAP_POINTS_VERT = "backend/map_points.vert"
 #: The RGB32UI packing pass before a readback.

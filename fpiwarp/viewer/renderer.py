@@ -61,6 +61,7 @@ from ..backends.gl import (
     MeshBuffers,
     ProgramKey,
     bound_framebuffer,
+    coarse,
     draw_culled_mesh,
     grid_mesh,
     set_uniform,
@@ -343,6 +344,7 @@ class Renderer:
         flags = ("PV_ALPHA",) if self.image.shape[2] in (2, 4) else ()
         shading = dict(stages=kind, order=self.order, mode=self.mode,
                        flags=flags + (("FPW_ANTIALIAS",) if self.antialias else ()))
+        seeded = coarse.flags(method == "pixel" and self.warper.newton_map, self.antialias)
         h, w, c = self.image.shape
         cval4 = display_rgba(np.broadcast_to(np.asarray(self._cval, np.float64), (c,)) / self._scale)
         bg = cval4 if self.background is None else np.resize(np.asarray(self.background, np.float64), 4)
@@ -352,8 +354,11 @@ class Renderer:
             set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params((0, 0) + viewport[2:], y_down)))
             set_uniform(prog, "fpw_viewport", (float(viewport[2]), float(viewport[3])))
         else:
+            shading["flags"] += seeded
             prog = self.warper.program(ProgramKey(FULLSCREEN, glsl.PREVIEW_FRAG, **shading))
             set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params(viewport, y_down)))
+            if seeded:  # a Newton map's coarse pass (fpiwarp.backends.gl.coarse)
+                coarse.prepare(self.warper, prog, kind, self.view_params(viewport, y_down), viewport)
         set_uniform(prog, "fpw_src_size", (w, h))
         set_uniform(prog, "fpw_cval", tuple(float(v) for v in cval4) if c in (2, 4) else (0.0, 0.0, 0.0, 0.0))
         set_uniform(prog, "pv_background", tuple(float(v) for v in bg))

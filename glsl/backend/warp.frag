@@ -33,7 +33,7 @@ void main() {
 #ifdef FPW_ANTIALIAS
     fpw_emit(fpw_sample_antialiased(xy));
 #else
-    fpw_emit(fpw_sample(fpw_map(xy)));
+    fpw_emit(fpw_sample(FPW_PIXEL_MAP(xy)));  // FPW_COARSE: seeded (map.glsl)
 #endif
 #endif
 }

@@ -13,7 +13,7 @@
 // FPW_PER_DRAW_VALUES(X) lists the values of the program being built as
 // X(type, name); which ones follows the defines both stages see:
 //   FPW_WITH_SAMPLER       the sampler and output of include/fpiwarp.glsl;
-//   FPW_FRAGMENT_WARP      warp.frag's view;
+//   FPW_FRAGMENT_WARP      warp.frag's view (FPW_FRAGMENT_COARSE: coarse.frag's);
 //   FPW_FRAGMENT_PREVIEW, FPW_FRAGMENT_PREVIEW_MESH
 //                          preview_shade.glsl's view and settings.
 // The host budgets FPW_MAX_PER_DRAW varying slots for them (checked below).
@@ -54,8 +54,8 @@
 #define FPW_SAMPLER_VALUES(X)
 #endif
 
-#if defined(FPW_FRAGMENT_WARP)
-// out = view.xy + view.zw * (gl_FragCoord.xy - 0.5) (see warp.frag)
+#if defined(FPW_FRAGMENT_WARP) || defined(FPW_FRAGMENT_COARSE)
+// out = view.xy + view.zw * (gl_FragCoord.xy - 0.5) (see warp.frag; coarse.frag's nodes alike)
 #define FPW_FRAGMENT_VALUES(X) X(vec4, fpw_view)
 #elif defined(FPW_FRAGMENT_PREVIEW) || defined(FPW_FRAGMENT_PREVIEW_MESH)
 // the view as in warp.frag; what shows where the source is not (sources

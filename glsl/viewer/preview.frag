@@ -15,7 +15,7 @@
 
 void main() {
     vec2 xy = fpw_view.xy + fpw_view.zw * (gl_FragCoord.xy - 0.5);
-    vec2 src = fpw_map(xy);
+    vec2 src = FPW_PIXEL_MAP(xy);  // FPW_COARSE: seeded (map.glsl)
 #ifdef FPW_ANTIALIAS
     vec2 dz, dzb;
     fpw_map_wirtinger(xy, dz, dzb);

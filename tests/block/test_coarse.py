@@ -90,18 +90,69 @@ def test_a_failed_node_leaves_its_pixels_to_the_per_point_solve():
     np.testing.assert_allclose(np.stack([got.real, got.imag], -1), want, rtol=1e-5, atol=1e-5)
 
 
+@pytest.mark.parametrize("backend", ["opencl", "gl"])
 @pytest.mark.parametrize("height, width", [(64, 129), (120, 257)])
-def test_opencl_warp_samples_where_the_reference_says(height, width):
+def test_the_warp_samples_where_the_reference_says(backend, height, width):
     """A float32 image equal to its x (and y) coordinate, sampled at order 1,
     reads back the source position of each output pixel inside the picture:
-    the OpenCL warp's coarse-seeded positions are the reference's (at
+    the OpenCL and GL warps' coarse-seeded positions are the reference's (at
     120 x 257 the per-point solve's lie up to 8e-3 px from them)."""
-    use_backend("opencl")
+    use_backend(backend)
     local = _local(height, width)
     want = evaluate_pixels(local.inverse.params(), width, height, np.float32)
     y, x = np.mgrid[0:height, 0:width].astype(np.float32)
     img = np.stack([x, y, np.zeros_like(x)], -1)
-    got = fpiwarp.warp_image(img, local, order=1, mode="constant", cval=-1.0, backend="opencl")[..., :2]
+    got = fpiwarp.warp_image(img, local, order=1, mode="constant", cval=-1.0, backend=backend)[..., :2]
     inside = (want[..., 0] >= 0) & (want[..., 0] <= width - 1) & (want[..., 1] >= 0) & (want[..., 1] <= height - 1)
     assert inside.mean() > 0.8
     np.testing.assert_allclose(got[inside], want[inside], rtol=0, atol=1e-3)
+
+
+def _gl_records(warper):
+    """The node records (ny, nx, 3) complex of the GL coarse pass drawn last."""
+    xa, b = (np.frombuffer(t.read(), np.float32).reshape(t.height, t.width, 4)
+             for t in warper.targets.get("coarse").color_attachments)
+    return np.stack([xa[..., 0] + 1j * xa[..., 1], xa[..., 2] + 1j * xa[..., 3], b[..., 0] + 1j * b[..., 1]], -1)
+
+
+def _assert_records_close(got, want):
+    assert got.shape == want.shape
+    finite = np.isfinite(want[..., 0])
+    assert np.array_equal(np.isfinite(got[..., 0]), finite) and finite.mean() > 0.99
+    np.testing.assert_allclose(got[finite], want[finite], rtol=1e-4, atol=2e-4)
+
+
+@pytest.mark.parametrize("specialize", [True, False])
+def test_gl_coarse_pass_writes_the_reference_records(make_gl_warper, specialize):
+    """The GL warp's node textures hold coarse.coarse_pass's records (the
+    specialized and the run-time stage walk alike)."""
+    height, width = 70, 133
+    local = _local(height, width)
+    warper = make_gl_warper(specialize=specialize)
+    warper.warp_image(np.zeros((height, width, 1), np.float32), local, (height, width))
+    _assert_records_close(_gl_records(warper), coarse_pass(local.inverse.params(), width, height))
+
+
+def test_gl_preview_nodes_start_at_its_viewport_corner(gl_backend):
+    """The preview's pass (Renderer, method "pixel") at a viewport away from
+    the framebuffer's corner, its view one output pixel per window pixel
+    from there: the nodes are the warp's."""
+    from fpiwarp.backends.gl import shared_context
+    from fpiwarp.viewer import Renderer
+
+    height, width = 48, 72
+    local = _local(height, width)
+    ctx = shared_context()
+    r = Renderer(ctx, method="pixel")
+    fbo = ctx.simple_framebuffer((width + 20, height + 9))
+    try:
+        r.set_image(np.zeros((height, width, 3), np.uint8))
+        r.set_transform(local)
+        r.view = (-0.5, -0.5, width - 0.5, height - 0.5)
+        fbo.use()
+        r.draw((13, 5, width, height), y_down=True)
+        _assert_records_close(_gl_records(r.warper), coarse_pass(local.inverse.params(), width, height))
+    finally:
+        ctx.detect_framebuffer(0).use()
+        fbo.release()
+        r.release()

@@ -20,8 +20,9 @@ import numpy as np
 from ... import block as P
 from ... import glsl
 from ...block import describe
+from ...block.coarse import newton_stage
 from ...validation import check_mode, check_order
-from . import readback
+from . import coarse, readback
 from .context import bound_framebuffer, create_context
 from .mesh import MeshBuffers, draw_culled_mesh, grid_mesh
 from .programs import FULLSCREEN, MAX_ROWS, ProgramCache, ProgramKey, set_uniform
@@ -110,6 +111,7 @@ class GLWarper:
         #: the antialiasing pyramid of the last source (reused while its pixels stay)
         self.pyramids = PyramidCache(self.ctx)
         self.short_map = False  # set by set_map
+        self.newton_map = False  # set by set_map
 
     # ---- programs and per-draw values
     @property
@@ -149,6 +151,8 @@ class GLWarper:
         self.ubo.bind_to_uniform_block(self.ubo_binding)
         #: the block just uploaded is a specialized short map (see BlockKind.is_short)
         self.short_map = self.specialize and kind.is_short
+        #: the block just uploaded has a Newton core (a per-pixel draw may take the coarse pass)
+        self.newton_map = newton_stage(kind) is not None
         return tuple((s.core, s.n_regions) for s in kind.stages) if self.specialize else None
 
     def set_view(self, progs, origin, size):
@@ -274,12 +278,14 @@ class GLWarper:
         finally:
             caller.use()  # a caller drawing into its own framebuffer keeps it bound
 
-    def _program_keys(self, image, order, mode, mesh, hw, tiled, stages, antialias=False):
+    def _program_keys(self, image, order, mode, mesh, hw, tiled, stages, antialias=False, seeded=True):
         """(key of the warp or mesh program, key of the mesh's fill pass or
         None, whether the warp program packs its RGB pixels). Antialiased
         programs (FPW_ANTIALIAS) gather as plain ones do (a pixel that does
         not shrink runs the plain warp's sampling code) but do not pack (four
-        inlined footprint averages per fragment compile slowly on llvmpipe)."""
+        inlined footprint averages per fragment compile slowly on llvmpipe).
+        ``seeded``: an untiled per-pixel warp of a Newton map takes the coarse
+        pass (its draw: :func:`.coarse.seeded_draw`)."""
         c = image.shape[2]
         gather = (self.gather and not (hw or tiled) and mesh is None and order == 1
                   and mode in HW_MODES)
@@ -300,7 +306,8 @@ class GLWarper:
         key = ProgramKey(FULLSCREEN, glsl.WARP_FRAG, stages=stages, order=order, mode=mode,
                          source="hw" if hw else SOURCE_KINDS[image.dtype], gather_channels=c if gather else 0,
                          output=output, pack_pixels=readback.pixels_per_texel(image.dtype) if packs else 0,
-                         flags=("FPW_ANTIALIAS",) if antialias else ())
+                         flags=(("FPW_ANTIALIAS",) if antialias else ())
+                         + coarse.flags(seeded and self.newton_map and mesh is None and not tiled, antialias))
         if mesh is None:
             return key, None, packs
         fill = key.with_changes(stages=None, output="fill_int" if integer else "fill")
@@ -335,6 +342,8 @@ class GLWarper:
 
             def draw():
                 vao.render(moderngl.TRIANGLES, vertices=3)
+            if coarse.FLAG in key.flags:
+                draw = coarse.seeded_draw(self, prog, stages, draw)
         try:
             if tiled:
                 atlas = None
@@ -368,7 +377,7 @@ class GLWarper:
         """(key, packs) of the per-pixel warp program that :meth:`warp_block`
         uses for an untiled ``image`` with software sampling, after
         :meth:`set_map` (or ``short_map`` set) for a block of kind ``stages``."""
-        key, _, packs = self._program_keys(image, order, mode, None, False, False, stages, antialias)
+        key, _, packs = self._program_keys(image, order, mode, None, False, False, stages, antialias, seeded=False)
         return key, packs
 
     def draw_tile(self, image, out, prog, draw, box, packs=False, full=None):

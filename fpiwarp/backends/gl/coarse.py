@@ -1,0 +1,71 @@
+"""The coarse pass of a per-pixel warp or preview of a map with a Newton
+core, on GL (the reference: :mod:`fpiwarp.block.coarse`).
+
+Before a per-pixel draw whose program has the ``FPW_COARSE`` flag
+(glsl/include/map.glsl) :func:`prepare` renders glsl/backend/coarse.frag
+into two RGBA32F targets of one texel per node (x and a; b), nodes
+``COARSE_STEP`` window pixels apart from the draw's viewport corner, and
+binds them for the draw (texture units :data:`UNITS`). Each fragment of
+the draw then seeds the block's first Newton stage from its four nodes.
+A warp_image output of one tile has the reference's nodes exactly; a
+tiled output's nodes start again at each tile's corner (tiles are the
+driver's size limit apart). Batches and antialiased programs solve per
+pixel, as the OpenCL backend does.
+"""
+
+import moderngl
+
+from ... import glsl
+from ...block.coarse import coarse_shape
+from .context import bound_framebuffer
+from .programs import FULLSCREEN, ProgramKey, set_uniform
+
+#: False: every pixel solves alone (read per draw: benchmarks compare the two).
+COARSE_PASS = True
+#: The define of a per-pixel program seeded by the pass.
+FLAG = "FPW_COARSE"
+#: Texture units of the node records (x and a; b): clear of the source
+#: (0), the packing pass's input (1) and the antialiasing pyramid's.
+UNITS = (6, 7)
+
+
+def flags(newton_map, antialias=False):
+    """The program flags of a per-pixel draw: (FLAG,) for a map with a
+    Newton core (``newton_map``), without antialiasing, while COARSE_PASS."""
+    return (FLAG,) if COARSE_PASS and newton_map and not antialias else ()
+
+
+def prepare(warper, prog, stages, view, viewport):
+    """Render the nodes of a draw by ``prog`` (a program with FLAG) over
+    ``viewport`` (x, y, w, h window pixels) with ``fpw_view`` ``view``, for
+    a block of kind ``stages`` uploaded to ``warper``; bind them for the
+    draw. The caller's framebuffer and viewport are bound again after."""
+    ctx = warper.ctx
+    x0, y0, w, h = (int(v) for v in viewport)
+    ny, nx = coarse_shape(w, h)
+    caller, caller_viewport = bound_framebuffer(ctx), ctx.viewport
+    fbo = warper.targets.cached("coarse", (nx, ny), lambda: ctx.framebuffer(
+        color_attachments=[ctx.texture((nx, ny), 4, dtype="f4") for _ in UNITS]))
+    node = warper.program(ProgramKey(FULLSCREEN, glsl.COARSE_FRAG, stages=stages, samples=False,
+                                     flags=("FPW_COARSE_PASS",)))
+    vx, vy, vz, vw = (float(v) for v in view)
+    set_uniform(node, "fpw_view", (vx + vz * x0, vy + vw * y0, vz, vw))
+    fbo.use()  # its viewport: (0, 0, nx, ny)
+    warper.fullscreen_vao(node).render(moderngl.TRIANGLES, vertices=3)
+    caller.use()
+    ctx.viewport = caller_viewport
+    for unit, tex in zip(UNITS, fbo.color_attachments):
+        tex.use(unit)
+    set_uniform(prog, "fpw_coarse_xa", UNITS[0])
+    set_uniform(prog, "fpw_coarse_b", UNITS[1])
+    set_uniform(prog, "fpw_coarse_origin", (x0, y0))
+
+
+def seeded_draw(warper, prog, stages, draw):
+    """``draw`` (a warp_image tile's draw by ``prog``) preceded by the
+    coarse pass of the tile: its view read back from ``prog``, its size the
+    viewport the caller set."""
+    def run():
+        prepare(warper, prog, stages, prog["fpw_view"].value, (0, 0) + tuple(warper.ctx.viewport[2:]))
+        draw()
+    return run
