@@ -23,8 +23,8 @@ import threading
 import numpy as np
 
 from ...sampling.antialias import iter_footprints, sample_antialiased
-from ...sampling.pyramid import Pyramid, PyramidCache
 from ...sampling.positions import CHUNK_PIXELS, iter_source_positions, source_positions
+from ...sampling.pyramid import Pyramid, PyramidCache
 from ...sampling.sampler import sample, to_dtype
 
 #: Source-position maps a bound map keeps (one per output size).
