@@ -219,19 +219,36 @@ def test_viewer_export_antialiases(gl_backend):
         fgl.Renderer(backend.ctx, warper=backend.warper, antialias="on")
 
 
-def test_cli_warp_antialias(tmp_path):
-    """``fpiwarp warp --antialias`` writes the picture of warp_image(antialias=True)."""
-    from fpiwarp.cli.commands import main
+def test_cli_warp_antialiases_by_default_except_at_order_0(tmp_path, capsys):
+    """``fpiwarp warp`` writes the picture of warp_image(antialias=True) by
+    default and with ``--antialias``, the plain one with ``--no-antialias``
+    and at ``--order 0`` (labels are never averaged); its help names the
+    backends that antialias, from their capabilities."""
+    from fpiwarp.cli.commands import antialiasing_backends, main
 
     img = kernel_cases.make_image((40, 60, 3), np.uint8)
-    src, out_plain, out_aa = tmp_path / "in.png", tmp_path / "plain.png", tmp_path / "aa.png"
+    src = tmp_path / "in.png"
     fpiwarp.write_image(src, img)
     corners = ["--src", "0,0,59,0,59,39,0,39", "--dst", "2,1,20,0,19,13,0,12"]
-    assert main(["warp", str(src), str(out_aa), *corners, "--antialias"]) == 0
-    assert main(["warp", str(src), str(out_plain), *corners]) == 0
     f = FPI([[0, 0], [59, 0], [59, 39], [0, 39]], [[2, 1], [20, 0], [19, 13], [0, 12]])
-    assert np.array_equal(fpiwarp.read_image(out_aa), fpiwarp.warp_image(img, f, antialias=True))
-    assert np.array_equal(fpiwarp.read_image(out_plain), fpiwarp.warp_image(img, f))
+    runs = {"default": [], "on": ["--antialias"], "off": ["--no-antialias"], "nearest": ["--order", "0"],
+            "nearest on": ["--order", "0", "--antialias"]}
+    for name, flags in runs.items():
+        assert main(["warp", str(src), str(tmp_path / f"{name}.png"), *corners, *flags]) == 0
+    got = {name: fpiwarp.read_image(tmp_path / f"{name}.png") for name in runs}
+    smooth, plain = fpiwarp.warp_image(img, f, antialias=True), fpiwarp.warp_image(img, f)
+    assert not np.array_equal(smooth, plain)
+    assert np.array_equal(got["default"], smooth) and np.array_equal(got["on"], smooth)
+    assert np.array_equal(got["off"], plain)
+    assert np.array_equal(got["nearest"], fpiwarp.warp_image(img, f, order=0))
+    assert np.array_equal(got["nearest on"], fpiwarp.warp_image(img, f, order=0, antialias=True))
+    assert set(antialiasing_backends()) == {n for n in fpiwarp.backends.REGISTRY
+                                            if backend_capabilities(n).antialias} >= {"numpy"}
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["warp", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "Backends that antialias: " + ", ".join(antialiasing_backends()) in text
 
 
 # --- over the pyramid: levels >= 1 and the blend between levels ----------------
