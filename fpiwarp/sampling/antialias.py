@@ -148,12 +148,15 @@ def sample_antialiased(image, pos, ex, ey, order=1, mode="constant", cval=0.0, p
     when None). Float64 values S + (C,), before rounding; plain
     :func:`sample` where both level-0 counts are 1."""
     x, y = pos[..., 0], pos[..., 1]
-    out = sample(image, x, y, order, mode, cval)
-    multi = np.flatnonzero((tap_counts(ex) > 1) | (tap_counts(ey) > 1))
-    if multi.size == 0:
-        return out
-    pyramid = Pyramid(image) if pyramid is None else pyramid
+    shrinks = (tap_counts(ex) > 1) | (tap_counts(ey) > 1)
+    if not shrinks.any():
+        return sample(image, x, y, order, mode, cval)
+    out = np.empty(x.shape + (image.shape[-1],))
     flat_out = out.reshape(-1, out.shape[-1])
+    plain, multi = np.flatnonzero(~shrinks), np.flatnonzero(shrinks)
+    if plain.size:  # sampling is pointwise: the same values as sampling every pixel
+        flat_out[plain] = sample(image, x.reshape(-1)[plain], y.reshape(-1)[plain], order, mode, cval)
+    pyramid = Pyramid(image) if pyramid is None else pyramid
     x, y = x.reshape(-1)[multi], y.reshape(-1)[multi]
     ex, ey = ex.reshape(-1)[multi], ey.reshape(-1)[multi]
     level, blend = pyramid_levels(ex, ey, pyramid.top)
