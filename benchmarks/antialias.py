@@ -49,6 +49,8 @@ ANISO = ((4, 1), (6, 1.5))
 #: (x, y) shrinks of the cost table: uniform ones and anisotropic ones
 COST_SHRINKS = ((1.5, 1.5), (2, 2), (4, 4), (8, 8), (4, 1), (6, 1.5))
 COST_SIZE = (1080, 1920)
+#: FPI shrinks whose crops the figure shows: level 0 of the pyramid, and far up it
+CROP_SHRINKS = ("1/3", "1/8")
 QUICK_COST_SIZE = (120, 160)
 
 
@@ -178,8 +180,8 @@ def quality(quick, log=print):
             for method, run in methods(image, transform, shape, kind == "uniform").items():
                 got = run()
                 scores[method] = round(psnr(got, ref, mask), 2)
-                if kind == "fpi" and label == "1/3":
-                    crops.setdefault(name, {"reference": ref})[method] = got.reshape(ref.shape)
+                if kind == "fpi" and label in CROP_SHRINKS:
+                    crops.setdefault((name, label), {"reference": ref})[method] = got.reshape(ref.shape)
             cases.append(Case(name, kind, label, scores))
             log(f"antialias {name} {kind} {label}: " + ", ".join(f"{k} {v}" for k, v in scores.items()))
     return cases, crops
@@ -329,7 +331,8 @@ def markdown(result, machine_md):
 
 
 def figure(result, path, dpi=90):
-    """Crops side by side: reference, fpiwarp with and without AA, peers."""
+    """Crops side by side: reference, fpiwarp with and without AA, peers;
+    one row per picture and FPI shrink of CROP_SHRINKS."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -338,7 +341,7 @@ def figure(result, path, dpi=90):
     crops = result["crops"]
     cols = ["reference", "fpiwarp order 1", "fpiwarp order 1 antialias", "cv2.remap linear", "skimage warp order 1"]
     fig, axes = plt.subplots(len(crops), len(cols), figsize=(2.6 * len(cols), 2.8 * len(crops)), squeeze=False)
-    for row, (name, images) in enumerate(crops.items()):
+    for row, ((name, label), images) in enumerate(crops.items()):
         ref = images["reference"]
         h, w = ref.shape[:2]
         box = (slice(h // 4, h // 4 + max(8, h // 2)), slice(w // 4, w // 4 + max(8, w // 2)))
@@ -352,7 +355,7 @@ def figure(result, path, dpi=90):
             if row == 0:
                 ax.set_title(method, fontsize=8)
             if col == 0:
-                ax.set_ylabel(f"{name}, FPI 1/3", fontsize=8)
+                ax.set_ylabel(f"{name}, FPI {label}", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=dpi, format="png")
     plt.close(fig)
