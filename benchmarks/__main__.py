@@ -95,7 +95,7 @@ def main(argv=None):
 
     if args.only in (None, "antialias"):
         t0 = time.perf_counter()
-        result = antialias.run(quick=args.quick, log=log)
+        result = antialias.run(quick=args.quick, log=log, backends=args.backends)
         info["antialias_wall_s"] = round(time.perf_counter() - t0, 1)
         write_text(out / "antialias.md", antialias.markdown(result, machine_md))
         write_json(out / "antialias.json", {"machine": info, **antialias.to_json(result)})

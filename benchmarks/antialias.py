@@ -14,8 +14,9 @@ Cases: a uniform scale (where ``cv2.resize(INTER_AREA)`` and
 ``skimage.transform.rescale(anti_aliasing=True)`` apply), an FPI that
 shrinks by about the same factor (the issue's map, scaled), and
 anisotropic FPIs (one direction shrunk much more than the other).
-Methods: fpiwarp order 1 without and with antialiasing (numpy; every
-backend agrees with it), ``cv2.remap`` (bilinear) at the same positions,
+Methods: fpiwarp order 1 without and with antialiasing (the numpy
+reference: every backend agrees with it; since issue 29 the footprint
+average reads a source pyramid, see fpiwarp.sampling.pyramid), ``cv2.remap`` (bilinear) at the same positions,
 ``skimage.transform.warp`` (order 1) and, for uniform scales, the two
 resizers.
 
@@ -23,6 +24,14 @@ Cost. 1920 × 1080 RGB uint8 pictures warped by the FPI of each shrink
 factor into an output of the shrunk size, on each backend that
 antialiases, with and without antialiasing, timed side by side (best of
 several calls after a warm-up); the ratio is the cost of antialiasing.
+The source is read-only, as a tool that warps one picture many times
+holds it, so that backends that keep a pyramid per source reuse it
+(numpy: see fpiwarp.backends.numpy.backend); each call builds nothing
+else again. A backend that fails a call is reported with its error, the
+others still run. Beside them, for uniform shrinks, the peers'
+antialiased resizers on the same picture: ``cv2.resize(INTER_AREA)`` and
+``skimage.transform.rescale(anti_aliasing=True)`` (order 1), with their
+time relative to the fastest plain fpiwarp warp of that shrink.
 """
 
 import time
@@ -40,6 +49,8 @@ ANISO = ((4, 1), (6, 1.5))
 #: (x, y) shrinks of the cost table: uniform ones and anisotropic ones
 COST_SHRINKS = ((1.5, 1.5), (2, 2), (4, 4), (8, 8), (4, 1), (6, 1.5))
 COST_SIZE = (1080, 1920)
+#: FPI shrinks whose crops the figure shows: level 0 of the pyramid, and far up it
+CROP_SHRINKS = ("1/3", "1/8")
 QUICK_COST_SIZE = (120, 160)
 
 
@@ -129,11 +140,11 @@ def methods(image, transform, shape, uniform):
         return sktf.warp(image, lambda rc: inv(rc), output_shape=shape, order=1, mode="edge")
 
     out = {
-        "fpiwarp order 1": lambda: fpiwarp.warp_image(image, transform, shape, mode="edge"),
+        "fpiwarp order 1": lambda: fpiwarp.warp_image(image, transform, shape, mode="edge", backend="numpy"),
         "fpiwarp order 1 antialias": lambda: fpiwarp.warp_image(image, transform, shape, mode="edge",
-                                                                antialias=True),
+                                                                antialias=True, backend="numpy"),
         "fpiwarp order 3 antialias": lambda: fpiwarp.warp_image(image, transform, shape, order=3, mode="edge",
-                                                                antialias=True),
+                                                                antialias=True, backend="numpy"),
         "cv2.remap linear": lambda: cv2.remap(image, pos[..., 0], pos[..., 1], cv2.INTER_LINEAR,
                                               borderMode=cv2.BORDER_REPLICATE).reshape(shape + (chan,)),
         "skimage warp order 1": sk_warp,
@@ -169,8 +180,8 @@ def quality(quick, log=print):
             for method, run in methods(image, transform, shape, kind == "uniform").items():
                 got = run()
                 scores[method] = round(psnr(got, ref, mask), 2)
-                if kind == "fpi" and label == "1/3":
-                    crops.setdefault(name, {"reference": ref})[method] = got.reshape(ref.shape)
+                if kind == "fpi" and label in CROP_SHRINKS:
+                    crops.setdefault((name, label), {"reference": ref})[method] = got.reshape(ref.shape)
             cases.append(Case(name, kind, label, scores))
             log(f"antialias {name} {kind} {label}: " + ", ".join(f"{k} {v}" for k, v in scores.items()))
     return cases, crops
@@ -189,21 +200,23 @@ def _best_time(fn, budget=2.0, at_most=7):
     return min(times), min(cpu)
 
 
-def cost(quick, log=print):
+def cost(quick, log=print, backends=None):
     """[{backend, shrink, plain_s, antialias_s, ratio, plain_cpu_s,
-    antialias_cpu_s, cpu_ratio}] at COST_SIZE. The CPU times (the work of
-    the process's threads: CPU backends run in-process) are the steadier
-    measure on a shared machine, where other processes stretch the wall
-    clock of one call but not its CPU time."""
+    antialias_cpu_s, cpu_ratio}] at COST_SIZE (a failing backend: {backend,
+    shrink, error}). The CPU times (the work of the process's threads: CPU
+    backends run in-process) are the steadier measure on a shared machine,
+    where other processes stretch the wall clock of one call but not its
+    CPU time. ``backends``: names to time (default: every available one
+    that antialiases)."""
     h, w = QUICK_COST_SIZE if quick else COST_SIZE
-    rng = np.random.default_rng(0)
-    image = rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8)
+    image = _cost_image(h, w)
     rows = []
-    backends = [b for b in fpiwarp.available_backends() if fpiwarp.backends.backend_capabilities(b).antialias]
+    if backends is None:
+        backends = [b for b in fpiwarp.available_backends() if fpiwarp.backends.backend_capabilities(b).antialias]
     for backend in backends:
         for sx, sy in COST_SHRINKS:
             transform, shape = fpi_shrink(h, w, sx, sy)
-            label = f"1/{sx}" if sx == sy else f"1/{sx} x 1/{sy}"
+            label = _shrink_label(sx, sy)
 
             def plain(b=backend, t=transform, sh=shape):
                 return fpiwarp.warp_image(image, t, sh, backend=b)
@@ -211,8 +224,13 @@ def cost(quick, log=print):
             def smooth(b=backend, t=transform, sh=shape):
                 return fpiwarp.warp_image(image, t, sh, backend=b, antialias=True)
 
-            # alternated, so that a change of the machine's load hits both alike
-            runs = [(_best_time(plain), _best_time(smooth)) for _ in range(2)]
+            try:
+                # alternated, so that a change of the machine's load hits both alike
+                runs = [(_best_time(plain), _best_time(smooth)) for _ in range(2)]
+            except Exception as exc:  # noqa: BLE001 - one backend's failure is a result, the others still run
+                rows.append({"backend": backend, "shrink": label, "error": f"{type(exc).__name__}: {exc}"[:200]})
+                log(f"antialias cost {backend} {label}: failed: {rows[-1]['error']}")
+                continue
             (t_plain, c_plain), (t_aa, c_aa) = (np.min([r[k] for r in runs], axis=0) for k in (0, 1))
             rows.append({"backend": backend, "shrink": label, "plain_s": t_plain, "antialias_s": t_aa,
                          "ratio": round(t_aa / t_plain, 2), "plain_cpu_s": c_plain, "antialias_cpu_s": c_aa,
@@ -221,9 +239,50 @@ def cost(quick, log=print):
     return rows
 
 
-def run(quick=False, log=print):
+def _cost_image(h, w):
+    """The cost table's random RGB uint8 source, read-only (see the module docstring)."""
+    image = np.random.default_rng(0).integers(0, 256, size=(h, w, 3), dtype=np.uint8)
+    image.flags.writeable = False
+    return image
+
+
+def _shrink_label(sx, sy):
+    return f"1/{sx}" if sx == sy else f"1/{sx} x 1/{sy}"
+
+
+def peer_cost(quick, fpiwarp_rows, log=print):
+    """[{peer, shrink, s, cpu_s, vs_plain}]: the antialiased resizers on the
+    cost table's source at its uniform shrinks; ``vs_plain`` is the time
+    over the fastest plain fpiwarp warp of that shrink (wall clock)."""
+    import cv2  # noqa: PLC0415 - benchmark peers
+    from skimage import transform as sktf  # noqa: PLC0415
+
+    h, w = QUICK_COST_SIZE if quick else COST_SIZE
+    image = _cost_image(h, w)
+    rows = []
+    for sx, sy in COST_SHRINKS:
+        if sx != sy:
+            continue
+        label = _shrink_label(sx, sy)
+        size = (max(1, round(w / sx)), max(1, round(h / sy)))
+        peers = {
+            "cv2.resize INTER_AREA": lambda sz=size: cv2.resize(image, sz, interpolation=cv2.INTER_AREA),
+            "skimage rescale anti_aliasing": lambda s=sx: sktf.rescale(image, 1 / s, order=1, anti_aliasing=True,
+                                                                        channel_axis=-1),
+        }
+        plain = [r["plain_s"] for r in fpiwarp_rows if r["shrink"] == label and "plain_s" in r]
+        for name, fn in peers.items():
+            t, c = _best_time(fn)
+            rows.append({"peer": name, "shrink": label, "s": t, "cpu_s": c,
+                         "vs_plain": round(t / min(plain), 2) if plain else None})
+            log(f"antialias cost {name} {label}: {t * 1e3:.1f} ms")
+    return rows
+
+
+def run(quick=False, log=print, backends=None):
     cases, crops = quality(quick, log)
-    return {"cases": cases, "crops": crops, "cost": cost(quick, log), "quick": quick}
+    rows = cost(quick, log, backends)
+    return {"cases": cases, "crops": crops, "cost": rows, "peer_cost": peer_cost(quick, rows, log), "quick": quick}
 
 
 def to_json(result):
@@ -231,6 +290,7 @@ def to_json(result):
         "reference_subsamples": REF_SUB,
         "psnr_db": [{"picture": c.picture, "kind": c.kind, "shrink": c.shrink, **c.psnr} for c in result["cases"]],
         "cost": result["cost"],
+        "peer_cost": result["peer_cost"],
     }
 
 
@@ -254,14 +314,25 @@ def markdown(result, machine_md):
               "| backend | shrink | without AA (ms) | with AA (ms) | ratio | CPU without (ms) | CPU with (ms) "
               "| CPU ratio |", "|---|---|---|---|---|---|---|---|"]
     for r in result["cost"]:
+        if "error" in r:
+            lines.append(f"| {r['backend']} | {r['shrink']} | failed: {r['error']} | | | | | |")
+            continue
         lines.append(f"| {r['backend']} | {r['shrink']} | {r['plain_s'] * 1e3:.1f} | {r['antialias_s'] * 1e3:.1f} "
                      f"| {r['ratio']:.2f} | {r['plain_cpu_s'] * 1e3:.1f} | {r['antialias_cpu_s'] * 1e3:.1f} "
                      f"| {r['cpu_ratio']:.2f} |")
+    lines += ["", "Peers' antialiased resizers on the same source at the uniform shrinks (best of several calls, "
+              "same run); `vs fastest plain fpiwarp`: their time over the fastest plain fpiwarp warp of that "
+              "shrink:", "", "| peer | shrink | time (ms) | CPU (ms) | vs fastest plain fpiwarp |",
+              "|---|---|---|---|---|"]
+    for r in result["peer_cost"]:
+        vs = "" if r["vs_plain"] is None else f"{r['vs_plain']:.2f}"
+        lines.append(f"| {r['peer']} | {r['shrink']} | {r['s'] * 1e3:.1f} | {r['cpu_s'] * 1e3:.1f} | {vs} |")
     return "\n".join(lines + ["", machine_md]) + "\n"
 
 
 def figure(result, path, dpi=90):
-    """Crops side by side: reference, fpiwarp with and without AA, peers."""
+    """Crops side by side: reference, fpiwarp with and without AA, peers;
+    one row per picture and FPI shrink of CROP_SHRINKS."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -270,7 +341,7 @@ def figure(result, path, dpi=90):
     crops = result["crops"]
     cols = ["reference", "fpiwarp order 1", "fpiwarp order 1 antialias", "cv2.remap linear", "skimage warp order 1"]
     fig, axes = plt.subplots(len(crops), len(cols), figsize=(2.6 * len(cols), 2.8 * len(crops)), squeeze=False)
-    for row, (name, images) in enumerate(crops.items()):
+    for row, ((name, label), images) in enumerate(crops.items()):
         ref = images["reference"]
         h, w = ref.shape[:2]
         box = (slice(h // 4, h // 4 + max(8, h // 2)), slice(w // 4, w // 4 + max(8, w // 2)))
@@ -284,7 +355,7 @@ def figure(result, path, dpi=90):
             if row == 0:
                 ax.set_title(method, fontsize=8)
             if col == 0:
-                ax.set_ylabel(f"{name}, FPI 1/3", fontsize=8)
+                ax.set_ylabel(f"{name}, FPI {label}", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=dpi, format="png")
     plt.close(fig)

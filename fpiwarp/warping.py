@@ -168,10 +168,27 @@ def warp_image(
     antialias : bool, optional
         True filters each output pixel over its footprint in the source
         (the pixel square under the inverse map, from its analytic
-        Jacobian): no aliasing where the warp shrinks, plain interpolation
-        of ``order`` where it does not; at most 16×16 sub-samples per pixel
-        (the numpy reference is fpiwarp/_antialias.py). Default False. Backends that
-        antialias declare it (``capabilities.antialias``).
+        Jacobian), read from a pyramid of the source (halved levels; the
+        footprint's shorter edge picks the level, its longer edge is
+        supersampled there): no aliasing where the warp shrinks, plain
+        interpolation of ``order`` where it does not, bit for bit; a
+        bounded number of samples per pixel (the numpy reference is
+        ``fpiwarp/sampling/antialias.py`` and ``pyramid.py``). Backends
+        that antialias declare it (``capabilities.antialias``).
+        The pyramid is built once per call, and reused: on "numpy", for a
+        stack warped by one map, for consecutive equal images of a
+        ``warp_batch`` with one map each, and across calls for the last 3
+        read-only sources (``image.flags.writeable = False`` on an array
+        that owns its memory; a writeable array, or a read-only view of
+        one, is never served a kept pyramid;
+        ``fpiwarp.backends.numpy.backend.PYRAMIDS.clear()`` frees them).
+        Default False: this call's plain result is the reference
+        semantics (the exact point samples ``cv2.remap`` and
+        ``skimage.transform.warp`` give, what registration and pipelines
+        that compare outputs rely on), and order 0 is how label maps are
+        warped, which must never be averaged. ``fpiwarp warp`` and
+        ``fpiwarp batch`` antialias by default at orders 1 and 3 (see
+        :doc:`/guides/antialiasing`).
 
     out : array, optional
         An array of the result's shape, dtype, kind and device to write

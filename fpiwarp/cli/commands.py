@@ -25,6 +25,7 @@ partial or temporary file is left behind.
 the Python API's ``output_shape`` is (rows, cols) = (HEIGHT, WIDTH).
 """
 
+import argparse
 import os
 import sys
 import traceback
@@ -32,7 +33,7 @@ from importlib import resources
 from pathlib import Path
 
 from .. import __version__
-from ..backends import REGISTRY, backend_status
+from ..backends import REGISTRY, backend_capabilities, backend_status
 from ..batch.images import BatchSummary, Progress, list_inputs, run_batch
 from ..errors import BackendUnavailableError, FpiwarpError, MissingDependencyError, OutputExistsError
 from ..io.images import ORIENTATIONS, check_writable, read_image, write_image
@@ -104,7 +105,7 @@ def cmd_warp(args):
     transform = on_picture(transform, max(image.shape[1], out_w), max(image.shape[0], out_h))
     warped = warp_image(
         image, transform, output_shape, order=args.order, mode=args.mode, cval=cval, backend=args.backend,
-        antialias=args.antialias,
+        antialias=_antialias(args),
     )
     write_image(args.output, warped, info, overwrite=args.overwrite)
     print(f"wrote {args.output}")
@@ -134,7 +135,7 @@ def cmd_batch(args):
             order=args.order,
             mode=args.mode,
             cval=cval,
-            antialias=args.antialias,
+            antialias=_antialias(args),
             output_shape=output_shape,
             progress=progress,
             scheduler=args.scheduler,
@@ -289,14 +290,32 @@ def _preview_web(args, image, info, transform, overlays):
 # Parser and entry point
 
 
+def antialiasing_backends():
+    """The registered backends that antialias (their capabilities say so)."""
+    return [name for name in REGISTRY if backend_capabilities(name).antialias]
+
+
+def _antialias(args):
+    """``--antialias`` / ``--no-antialias``, else the command line's default:
+    on at orders 1 and 3 (a photo tool filters where the map shrinks; where
+    it does not, the result is the plain warp's bit for bit), off at order
+    0 (nearest: label maps and masks are never averaged) and on a named
+    backend that does not antialias."""
+    if args.antialias is not None:
+        return args.antialias
+    return args.order != 0 and (args.backend is None or backend_capabilities(args.backend).antialias)
+
+
 def _add_warp_options(p):
     p.add_argument("--backend", default=None, help="backend name (see 'fpiwarp backends'); default: the fastest that "
                    "works here ('fpiwarp backends' names it); numpy for the float64 reference")
     p.add_argument("--order", type=int, choices=ORDERS, default=1, help="0 nearest, 1 bilinear (default), 3 cubic")
     p.add_argument("--mode", choices=MODES, default="constant", help="border mode (default constant)")
-    p.add_argument("--antialias", action="store_true",
+    p.add_argument("--antialias", action=argparse.BooleanOptionalAction, default=None,
                    help="filter each output pixel over its footprint in the source: no moire where the warp "
-                   "shrinks, unchanged where it does not (numpy and opencl backends)")
+                   "shrinks, unchanged where it does not. Default: on at --order 1 and 3, off at --order 0 "
+                   "(label maps are never averaged). Backends that antialias: "
+                   + ", ".join(antialiasing_backends()))
     p.add_argument("--cval", help="value outside the image in constant mode: V or V1,V2,... per channel")
     p.add_argument(
         "--output-shape",

@@ -6,6 +6,15 @@ It samples with :mod:`fpiwarp.sampling.sampler` at the positions of
 pass over the map, as one image of N·C channels) and binds maps
 (:meth:`Backend.bind`: the source positions of one map are computed once
 per output size and shared by the images warped after).
+
+Antialiased warps read a source pyramid (:mod:`fpiwarp.sampling.pyramid`),
+built once per call (its levels when first needed), once per batch for
+images that are one source (a stack warped by one map is one wide image; a
+stack of equal images with one map each shares the pyramid of consecutive
+equal images), and kept across calls for the last :data:`PYRAMID_CACHE_SIZE`
+read-only sources (:func:`~fpiwarp.sampling.pyramid.frozen_source_key`:
+``image.flags.writeable = False`` on an array that owns its memory).
+A writeable array is never served a kept pyramid.
 """
 
 import collections
@@ -15,10 +24,16 @@ import numpy as np
 
 from ...sampling.antialias import iter_footprints, sample_antialiased
 from ...sampling.positions import CHUNK_PIXELS, iter_source_positions, source_positions
+from ...sampling.pyramid import Pyramid, PyramidCache
 from ...sampling.sampler import sample, to_dtype
 
 #: Source-position maps a bound map keeps (one per output size).
 MAP_CACHE_SIZE = 2
+#: Read-only sources whose pyramids are kept across calls (each holds its
+#: source and float64 levels of about 2/3 of the source's samples).
+PYRAMID_CACHE_SIZE = 3
+#: The kept pyramids (see the module docstring); ``PYRAMIDS.clear()`` frees them.
+PYRAMIDS = PyramidCache(Pyramid, PYRAMID_CACHE_SIZE)
 
 
 def probe():
@@ -36,13 +51,15 @@ def sample_bands(image, bands, output_shape, order, mode, cval):
     return out
 
 
-def sample_footprints(image, bands, output_shape, order, mode, cval):
+def sample_footprints(image, bands, output_shape, order, mode, cval, pyramid=None):
     """Like :func:`sample_bands` with antialiasing: (row_start, row_stop,
-    positions, ex, ey) bands (see :mod:`fpiwarp.sampling.antialias`)."""
+    positions, ex, ey) bands (see :mod:`fpiwarp.sampling.antialias`), all
+    reading one ``pyramid`` of ``image`` (from :data:`PYRAMIDS` when None)."""
     oh, ow = output_shape
     out = np.empty((oh, ow, image.shape[2]), dtype=image.dtype)
+    pyramid = PYRAMIDS.get(image) if pyramid is None else pyramid
     for r0, r1, pos, ex, ey in bands:
-        out[r0:r1] = to_dtype(sample_antialiased(image, pos, ex, ey, order, mode, cval), image.dtype)
+        out[r0:r1] = to_dtype(sample_antialiased(image, pos, ex, ey, order, mode, cval, pyramid), image.dtype)
     return out
 
 
@@ -79,12 +96,13 @@ class BoundMap:
                 self._positions.popitem(last=False)
         return pos
 
-    def warp_image(self, image, output_shape, *, order, mode, cval, antialias=False):
-        """Like :meth:`Backend.warp_image` with this map (antialiased warps
-        are not cached: their footprints are evaluated per call)."""
+    def warp_image(self, image, output_shape, *, order, mode, cval, antialias=False, pyramid=None):
+        """Like :meth:`Backend.warp_image` with this map (antialiased warps'
+        footprints are evaluated per call; their pyramid as described in the
+        module docstring)."""
         if antialias:
             return sample_footprints(image, iter_footprints(self.transform, output_shape), output_shape, order, mode,
-                                     cval)
+                                     cval, pyramid)
         return sample_bands(image, _bands_of(self.positions(output_shape)), output_shape, order, mode, cval)
 
 
@@ -96,9 +114,10 @@ class Backend:
     def map_points(self, transform, points):
         return transform(points)
 
-    def warp_image(self, image, transform, output_shape, *, order, mode, cval, antialias=False):
+    def warp_image(self, image, transform, output_shape, *, order, mode, cval, antialias=False, pyramid=None):
         if antialias:
-            return sample_footprints(image, iter_footprints(transform, output_shape), output_shape, order, mode, cval)
+            return sample_footprints(image, iter_footprints(transform, output_shape), output_shape, order, mode, cval,
+                                     pyramid)
         bands = iter_source_positions(transform, output_shape)
         return sample_bands(image, bands, output_shape, order, mode, cval)
 
@@ -109,14 +128,18 @@ class Backend:
     def warp_batch(self, stack, transforms, output_shape, *, order, mode, cval, antialias=False):
         """Warp a validated (N, H, W, C) stack; ``transforms`` holds one map
         for all images or one per image. One map: all N images are sampled
-        in one pass over it, as one (H, W, N·C) image."""
+        in one pass over it, as one (H, W, N·C) image. One map each:
+        consecutive equal images share one pyramid when antialiasing."""
         n, h, w, c = stack.shape
         if len(transforms) == 1:
             wide = np.ascontiguousarray(stack.transpose(1, 2, 0, 3)).reshape(h, w, n * c)
             flat = self.warp_image(wide, transforms[0], output_shape, order=order, mode=mode, cval=np.tile(cval, n),
                                    antialias=antialias)
             return flat.reshape(output_shape[0], output_shape[1], n, c).transpose(2, 0, 1, 3)
-        return np.stack([
-            self.warp_image(image, t, output_shape, order=order, mode=mode, cval=cval, antialias=antialias)
-            for image, t in zip(stack, transforms, strict=True)
-        ])
+        out, pyramid = [], None
+        for i, (image, t) in enumerate(zip(stack, transforms, strict=True)):
+            if antialias and (pyramid is None or not np.array_equal(image, stack[i - 1])):
+                pyramid = PYRAMIDS.get(image)
+            out.append(self.warp_image(image, t, output_shape, order=order, mode=mode, cval=cval, antialias=antialias,
+                                       pyramid=pyramid))
+        return np.stack(out)
