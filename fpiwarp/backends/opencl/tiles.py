@@ -12,8 +12,8 @@ the same source rows (a bilinear tap pair reads two). At 4K, 64 x 8 tiles
 ran the uint8 and float32 kernels 15-20 % faster than groups of 960 x 1
 (same outputs bit for bit; measured side by side, see the branch notes).
 
-Devices that are not CPUs and maps with a Newton inverse keep one-row
-groups: with
+Devices that are not CPUs, antialiased warps (their kernel keeps
+one-row groups) and maps with a Newton inverse keep one-row groups: with
 64 x 8 tiles, PoCL 3.1 gave a NaN (cval) for a pixel beside ones whose
 Newton iteration fails, where one-row groups and the reference converge
 (tests/batch/test_batch_launch.py found it; the Newton loop's exit is data
@@ -39,10 +39,9 @@ def has_newton(kind):
 
 def tiled(backend, antialias=False, kind=()):
     """Whether warp_image runs in tiles on ``backend``: CPUs (vector lanes),
-    no Newton iteration in the map, tiles within the device's group size
-    (antialiased warps too: their sub-samples read neighbouring source
-    rows all the more)."""
-    return backend.lanes > 1 and not has_newton(kind) and usable(backend, tile_for(backend))
+    not antialiased, no Newton iteration in the map, tiles within the
+    device's group size."""
+    return backend.lanes > 1 and not antialias and not has_newton(kind) and usable(backend, tile_for(backend))
 
 
 def tiled_program(backend, dtype, channels, order, mode, width, antialias, kind):
