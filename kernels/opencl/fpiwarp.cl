@@ -259,68 +259,229 @@ FW_FN float fw_aa_lanes_min(fw_fv v)
     return m;
 }
 
-/* warp_image with antialiasing (fpiwarp/_antialias.py): each pixel the
- * box average of nx x ny sub-samples of its footprint, the parallelogram
- * spanned by the inverse map's Jacobian columns ex, ey at the pixel; nx,
- * ny from the edges' lengths (fw_aa_count). Same work-groups and phases as
- * warp_image: the map and its derivatives per pixel into local memory,
- * then the sampling, FW_VN pixels per work-item, looping over the largest
- * counts of its lanes (lanes with fewer sub-samples skip the extra ones).
- * The plain sample at the pixel is taken only where some lane needs it
- * (one sub-sample): on a PoCL CPU a sample costs about as much in the
- * loop as outside it, so skipping it saves one of the 4 or more. */
-__kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
-void warp_image_aa(fw_block_t block, __global const FW_T *restrict src, int w, int h,
-                   __global FW_T *restrict dst, int ow, int oh, float4 cval FW_BATCH_ARGS)
+/* ---- the source pyramid (fpiwarp/sampling/pyramid.py) ------------------ */
+/* Level k >= 1 of a source (h x w x FW_C), float32, texel (i, j) the mean of
+ * level k - 1's 2 x 2 texels (2i, 2j) .. (2i + 1, 2j + 1), an index past the
+ * last row or column clamped to it; sums in the reference's order
+ * 0.25 ((a + b) + (c + d)). One work-item per texel of the new level (ow x
+ * oh, from element dst_at of dst), launch dimension 2 the image of a stack
+ * (src_items, dst_items elements apart). pyramid_first halves the source
+ * in its own type, pyramid_next the float32 level from element src_at of
+ * the pyramid (the same buffer as dst: the two levels do not overlap). */
+#define FW_HALVE_C(k, _) \
+    dst[at + k] = 0.25f * (((float)src[r0 + c0 + k] + (float)src[r0 + c1 + k]) + \
+                           ((float)src[r1 + c0 + k] + (float)src[r1 + c1 + k]));
+#define FW_HALVE_BODY                                                       \
+    int i = get_global_id(0), j = get_global_id(1);                         \
+    if (i >= ow || j >= oh)                                                 \
+        return;                                                             \
+    src += src_at + get_global_id(2) * (size_t)src_items;                   \
+    dst += dst_at + get_global_id(2) * (size_t)dst_items;                   \
+    int c0 = 2 * i * FW_C, c1 = min(2 * i + 1, w - 1) * FW_C;               \
+    int r0 = 2 * j * (w * FW_C), r1 = min(2 * j + 1, h - 1) * (w * FW_C);   \
+    int at = (j * ow + i) * FW_C;                                           \
+    FW_EACH_C(FW_HALVE_C, _)
+__kernel void pyramid_first(__global const FW_T *restrict src, int src_at, int w, int h,
+                            __global float *restrict dst, int dst_at, int ow, int oh, int src_items, int dst_items)
 {
+    FW_HALVE_BODY
+}
+__kernel void pyramid_next(__global const float *src, int src_at, int w, int h, __global float *dst, int dst_at,
+                           int ow, int oh, int src_items, int dst_items)
+{
+    FW_HALVE_BODY
+}
+#undef FW_HALVE_BODY
+#undef FW_HALVE_C
+
+/* sampler.sample of a float32 level (lw x lh x FW_C) with order 1 at FW_VN
+ * level coordinates (fx, fy): bilinear, FW_MODE on the level's own indices
+ * and size, cval outside in constant mode and where not finite; the
+ * interior path where all lanes' taps lie inside, as fw_sample's. */
+#define FW_LV_VALUE(k, at) FW_GATHER(fw_fv, FW_LV_AT_##k)
+#define FW_LV_AT_0(j) lvl[FW_LANE(at, j) + (off + 0)]
+#define FW_LV_AT_1(j) lvl[FW_LANE(at, j) + (off + 1)]
+#define FW_LV_AT_2(j) lvl[FW_LANE(at, j) + (off + 2)]
+#define FW_LV_AT_3(j) lvl[FW_LANE(at, j) + (off + 3)]
+#if FW_MODE == FW_MODE_CONSTANT
+#define FW_LV_CHANNEL(k, _) acc##k += wgt * select((fw_fv)(cval.s##k), FW_LV_VALUE(k, at), in);
+#else
+#define FW_LV_CHANNEL(k, _) acc##k += wgt * FW_LV_VALUE(k, at);
+#endif
+#define FW_LV_INDEX(i)                                \
+    fw_iv col##i = fw_border(x##i, lw) * FW_C;        \
+    fw_iv col_in##i = fw_inside(x##i, lw);            \
+    fw_iv row##i = fw_border(y##i, lh) * (lw * FW_C); \
+    fw_iv row_in##i = fw_inside(y##i, lh);
+#define FW_LV_TAP(i, j)                              \
+    {                                                \
+        fw_fv wgt = y##w##j * x##w##i;               \
+        fw_iv at = row##j + col##i;                  \
+        fw_iv in = row_in##j & col_in##i;            \
+        const int off = 0;                           \
+        FW_EACH_C(FW_LV_CHANNEL, _)                  \
+    }
+#define FW_LV_TAP_IN(i, j)                           \
+    {                                                \
+        fw_fv wgt = y##w##j * x##w##i;               \
+        const int off = i * FW_C;                    \
+        FW_EACH_C(FW_LV_CHANNEL_IN, _)               \
+    }
+#define FW_LV_CHANNEL_IN(k, _) acc##k += wgt * FW_LV_VALUE(k, at);
+#define FW_LV_ROW_IN(j)                              \
+    {                                                \
+        fw_iv at = at0 + j * (lw * FW_C);            \
+        FW_LV_TAP_IN(0, j) FW_LV_TAP_IN(1, j)        \
+    }
+FW_FN fw_pxv fw_sample_level(__global const float *lvl, int lw, int lh, fw_fv fx, fw_fv fy, float4 cval)
+{
+    fw_iv finite = (fabs(fx) <= FW_COORD_LIMIT) & (fabs(fy) <= FW_COORD_LIMIT);
+    fw_fv x = select((fw_fv)0.0f, fx, finite);
+    fw_fv y = select((fw_fv)0.0f, fy, finite);
+    fw_iv x0 = fw_floor(x), y0 = fw_floor(y), x1 = x0 + 1, y1 = y0 + 1;
+    fw_fv xw1 = x - FW_CONVERT(float, x0), yw1 = y - FW_CONVERT(float, y0);
+    fw_fv xw0 = 1.0f - xw1, yw0 = 1.0f - yw1;
+    fw_fv acc0 = 0.0f, acc1 = 0.0f, acc2 = 0.0f, acc3 = 0.0f;
+    if (FW_ALL(finite & (x0 >= 0) & (x1 < lw) & (y0 >= 0) & (y1 < lh))) {
+        fw_iv at0 = y0 * (lw * FW_C) + x0 * FW_C;
+        FW_LV_ROW_IN(0)
+        FW_LV_ROW_IN(1)
+        fw_pxv out = {acc0, acc1, acc2, acc3};
+        return out;
+    }
+    FW_LV_INDEX(0)
+    FW_LV_INDEX(1)
+    FW_LV_TAP(0, 0) FW_LV_TAP(1, 0)
+    FW_LV_TAP(0, 1) FW_LV_TAP(1, 1)
+    fw_pxv out = {select((fw_fv)cval.s0, acc0, finite), select((fw_fv)cval.s1, acc1, finite),
+                  select((fw_fv)cval.s2, acc2, finite), select((fw_fv)cval.s3, acc3, finite)};
+    return out;
+}
+
+/* warp_image with antialiasing (fpiwarp/sampling/antialias.py,
+ * sample_antialiased): each pixel whose footprint shrinks (a level-0 count
+ * above 1) the box average of its footprint, the parallelogram spanned by
+ * the inverse map's Jacobian columns ex, ey at the pixel, supersampled at
+ * pyramid level k (pyramid_levels: from the shorter edge) with the counts
+ * of the edges in level-k texels (fw_aa_count), blended into level k + 1
+ * with weight u in the last FW_AA_BLEND of an octave; other pixels the
+ * plain sample, bit for bit. Level 0 is the source (the call's order and
+ * type, fw_sample), levels >= 1 the float32 levels in `pyr` (levels[k] =
+ * (first element, width, height) of level k), sampled bilinearly.
+ * `built` levels are in pyr (top, the coarsest level of the source, clamps
+ * the lod): a pixel needing a level past `built` reads level `built`
+ * instead and sets *need (the host then builds them all and runs again).
+ *
+ * Same work-groups and phases as warp_image: the map and its derivatives
+ * per pixel into local memory, then the sampling, FW_VN pixels per
+ * work-item, for each level any lane reads, looping over the largest
+ * counts of the lanes reading it (lanes with fewer sub-samples skip the
+ * extra ones). The plain sample is taken only where some lane needs it. */
+#ifdef FW_BATCH
+#define FW_PYR_SELECT() (pyr += which[get_global_id(2)] * (size_t)pyr_items)
+#else
+#define FW_PYR_SELECT()
+#endif
+__kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, FW_LOCAL_Y, 1)))
+void warp_image_aa(fw_block_t block, __global const FW_T *restrict src, int w, int h,
+                   __global FW_T *restrict dst, int ow, int oh, float4 cval,
+                   __global const float *restrict pyr, __constant const int4 *levels, int top, int built,
+                   int pyr_items, __global int *need FW_BATCH_ARGS)
+{
+    FW_PYR_SELECT();
     FW_BATCH_SELECT(src, dst, w * h * FW_C, ow * oh * FW_C);
-    __local float pos_x[FW_LOCAL_X], pos_y[FW_LOCAL_X];
-    __local float exx[FW_LOCAL_X], exy[FW_LOCAL_X], eyx[FW_LOCAL_X], eyy[FW_LOCAL_X];
+    __local float pos_x[FW_LOCAL_Y * FW_LOCAL_X], pos_y[FW_LOCAL_Y * FW_LOCAL_X];
+    __local float exx[FW_LOCAL_Y * FW_LOCAL_X], exy[FW_LOCAL_Y * FW_LOCAL_X];
+    __local float eyx[FW_LOCAL_Y * FW_LOCAL_X], eyy[FW_LOCAL_Y * FW_LOCAL_X];
     int l = get_local_id(0), oy = get_global_id(1);
     int gx0 = get_group_id(0) * FW_LOCAL_X; /* the group's first pixel */
+    int row = get_local_id(1) * FW_LOCAL_X; /* the row's part of the local arrays */
     /* the position exactly as warp_image computes it (so that a magnified
-     * pixel is bit for bit the plain one), the derivatives beside it */
-    fw_c z = fw_cx((float)min(gx0 + l, ow - 1), (float)oy), dz, dzb;
-    fw_c s = fw_map(block, z);
-    fw_map_wirtinger(block, z, &dz, &dzb);
-    pos_x[l] = s.re;
-    pos_y[l] = s.im;
+     * pixel is bit for bit the plain one: fw_map_wirtinger's value is
+     * fw_map's, the same operations), the derivatives beside it */
+    fw_c dz, dzb;
+    fw_c s = fw_map_wirtinger(block, fw_cx((float)min(gx0 + l, ow - 1), (float)min(oy, oh - 1)), &dz, &dzb);
+    pos_x[row + l] = s.re;
+    pos_y[row + l] = s.im;
     /* ex = f_z + f_zbar, ey = i (f_z - f_zbar): the Jacobian's columns */
-    exx[l] = dz.re + dzb.re;
-    exy[l] = dz.im + dzb.im;
-    eyx[l] = dzb.im - dz.im;
-    eyy[l] = dz.re - dzb.re;
+    exx[row + l] = dz.re + dzb.re;
+    exy[row + l] = dz.im + dzb.im;
+    eyx[row + l] = dzb.im - dz.im;
+    eyy[row + l] = dz.re - dzb.re;
     barrier(CLK_LOCAL_MEM_FENCE);
     /* work-items whose pixels all lie past the row's end (padding) write
      * nothing: their sub-samples would only redo the row's last pixel */
-    if (l >= FW_LOCAL_X / FW_VN || gx0 + FW_VN * l >= ow)
+    if (l >= FW_LOCAL_X / FW_VN || gx0 + FW_VN * l >= ow || oy >= oh)
         return;
-    int at0 = FW_VN * l;
+    int at0 = row + FW_VN * l;
     fw_fv sx = FW_VLOAD(pos_x + at0), sy = FW_VLOAD(pos_y + at0);
     fw_fv ax = FW_VLOAD(exx + at0), ay = FW_VLOAD(exy + at0);
     fw_fv bx = FW_VLOAD(eyx + at0), by = FW_VLOAD(eyy + at0);
-    fw_fv nx = fw_aa_count(sqrt(ax * ax + ay * ay)), ny = fw_aa_count(sqrt(bx * bx + by * by));
+    fw_fv lx = sqrt(ax * ax + ay * ay), ly = sqrt(bx * bx + by * by);
+    fw_fv nx0 = fw_aa_count(lx), ny0 = fw_aa_count(ly);
+    fw_iv multi = (nx0 > 1.0f) | (ny0 > 1.0f);
     fw_pxv v = {0.0f, 0.0f, 0.0f, 0.0f};
-    if (fw_aa_lanes_min(nx * ny) == 1.0f)
+    if (!FW_ALL(multi))
         v = fw_sample(src, w, h, sx, sy, cval);
-    float mx = fw_aa_lanes_max(nx), my = fw_aa_lanes_max(ny);
-    if (mx > 1.0f || my > 1.0f) {
+    if (FW_ANY(multi)) {
+        /* pyramid_levels: lod from the shorter edge (NaN: 0), its floor k,
+         * the next level's weight u */
+        fw_fv short_len = fmin(lx, ly);
+        short_len = select(short_len, (fw_fv)0.0f, isnan(short_len));
+        fw_fv lod = log2(fmax(short_len * ((1.0f + FW_AA_SLACK) / FW_AA_LEVEL_SPAN), 1.0f));
+        lod = clamp(lod, 0.0f, (float)top);
+        fw_fv k = FW_CONVERT(float, fw_floor(lod));
+        fw_fv u = clamp((lod - k - 1.0f + FW_AA_BLEND) / FW_AA_BLEND, 0.0f, 1.0f);
+        u = select(u, (fw_fv)0.0f, k >= (float)top);
+        /* the levels any shrinking lane reads */
+        fw_fv last = k + select((fw_fv)0.0f, (fw_fv)1.0f, u > 0.0f);
+        fw_iv past = multi & (last > (float)built);
+        if (FW_ANY(past))
+            *need = 1;
+        float lo = fw_aa_lanes_min(select((fw_fv)(float)FW_AA_MAX_LEVEL, k, multi));
+        float hi = fw_aa_lanes_max(select((fw_fv)0.0f, last, multi));
+        hi = min(hi, (float)built);
         fw_fv acc0 = 0.0f, acc1 = 0.0f, acc2 = 0.0f, acc3 = 0.0f;
-        for (float j = 0.0f; j < my; j += 1.0f) {
-            fw_fv t = (2.0f * j + 1.0f - ny) / (2.0f * ny);
-            for (float i = 0.0f; i < mx; i += 1.0f) {
-                fw_fv sub = (2.0f * i + 1.0f - nx) / (2.0f * nx);
-                fw_iv live = ((fw_fv)i < nx) & ((fw_fv)j < ny);
-                fw_pxv u = fw_sample(src, w, h, sx + (ax * sub + bx * t), sy + (ay * sub + by * t), cval);
-#define FW_AA_ADD(k, _) acc##k += select((fw_fv)0.0f, u.c##k, live);
-                FW_EACH_C(FW_AA_ADD, _)
+        for (float lv = lo; lv <= hi; lv += 1.0f) {
+            /* this level's weight in each lane: 1 - u at k, u at k + 1 */
+            fw_fv wl = select((fw_fv)0.0f, 1.0f - u, k == lv) + select((fw_fv)0.0f, u, k + 1.0f == lv);
+            wl = select((fw_fv)0.0f, wl, multi);
+            fw_iv reads = wl > 0.0f;
+            if (!FW_ANY(reads))
+                continue;
+            int ilv = (int)lv;
+            float inv_scale = 1.0f / (float)(1 << ilv);
+            fw_fv nx = fw_aa_count(lx * inv_scale), ny = fw_aa_count(ly * inv_scale);
+            float mx = fw_aa_lanes_max(select((fw_fv)1.0f, nx, reads));
+            float my = fw_aa_lanes_max(select((fw_fv)1.0f, ny, reads));
+            int4 lvinfo = levels[ilv];
+            __global const float *lvl = pyr + lvinfo.x;
+            fw_fv sum0 = 0.0f, sum1 = 0.0f, sum2 = 0.0f, sum3 = 0.0f;
+            fw_fv rx = 1.0f / (2.0f * nx), ry = 1.0f / (2.0f * ny);
+            for (float j = 0.0f; j < my; j += 1.0f) {
+                fw_fv t = (2.0f * j + 1.0f - ny) * ry;
+                for (float i = 0.0f; i < mx; i += 1.0f) {
+                    fw_fv sub = (2.0f * i + 1.0f - nx) * rx;
+                    fw_iv live = ((fw_fv)i < nx) & ((fw_fv)j < ny);
+                    fw_fv px = sx + (ax * sub + bx * t), py = sy + (ay * sub + by * t);
+                    fw_pxv q;
+                    if (ilv == 0)
+                        q = fw_sample(src, w, h, px, py, cval);
+                    else
+                        q = fw_sample_level(lvl, lvinfo.y, lvinfo.z, (px + 0.5f) * inv_scale - 0.5f,
+                                            (py + 0.5f) * inv_scale - 0.5f, cval);
+#define FW_AA_ADD(k, _) sum##k += select((fw_fv)0.0f, q.c##k, live);
+                    FW_EACH_C(FW_AA_ADD, _)
 #undef FW_AA_ADD
+                }
             }
+            fw_fv part = wl / (nx * ny);
+#define FW_AA_LEVEL(k, _) acc##k += select((fw_fv)0.0f, part * sum##k, reads);
+            FW_EACH_C(FW_AA_LEVEL, _)
+#undef FW_AA_LEVEL
         }
-        fw_iv multi = (nx > 1.0f) | (ny > 1.0f);
         fw_iv finite = (fabs(sx) <= FW_COORD_LIMIT) & (fabs(sy) <= FW_COORD_LIMIT);
-        fw_fv inv = 1.0f / (nx * ny);
-#define FW_AA_PICK(k, _) v.c##k = select(v.c##k, select((fw_fv)cval.s##k, acc##k * inv, finite), multi);
+#define FW_AA_PICK(k, _) v.c##k = select(v.c##k, select((fw_fv)cval.s##k, acc##k, finite), multi);
         FW_EACH_C(FW_AA_PICK, _)
 #undef FW_AA_PICK
     }

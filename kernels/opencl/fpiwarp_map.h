@@ -856,8 +856,10 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
 /* true in every lane (vector comparisons give -1 per true lane, scalar ones 1) */
 #if FW_VN == 1
 #define FW_ALL(v) (v)
+#define FW_ANY(v) (v)
 #else
 #define FW_ALL(v) all(v)
+#define FW_ANY(v) any(v)
 #endif
 /* channel values at FW_VN pixels; c##k for k < FW_C are used */
 typedef struct {

@@ -40,6 +40,7 @@ from ...errors import BackendUnavailableError, SizeLimitError
 from ..lru import LruCache
 from . import build_cache
 from .prepared import IMAGE_SLACK, ZERO_COPY_MIN_BYTES, BoundMap, JobCache
+from .pyramid import DevicePyramid
 from .tiles import global_size, tiled_program
 
 ENV_DEVICE = "FPIWARP_OPENCL_DEVICE"
@@ -398,7 +399,7 @@ class Backend:
         with self._lock:
             job = self._jobs.get(self, image, output_shape, order, mode, cval, antialias, self.block_kind(block))
             job.set_block(block)
-            return job.run(image)
+            return job.run(image, transform.inverse)
 
     def bind(self, transform):
         """``transform`` prepared for many images (:class:`~.opencl_prepared.BoundMap`):
@@ -467,11 +468,16 @@ class DeviceWarp:
         self._cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self._sampling = (image.dtype, c, order, mode, ow, antialias)  # chosen with the map's kind by set_map
         self.local = None  # the work-group tile, with the kernel
-        if isinstance(image, np.ndarray):
+        #: the source is this job's own copy (a host image), so its pyramid
+        #: (antialiased) is built once; a device array's at every launch
+        self._own_source = isinstance(image, np.ndarray)
+        if self._own_source:
             self._src = be._buffer("image_in", image.nbytes + IMAGE_SLACK)
             cl.enqueue_copy(be.queue, self._src, image)
         else:  # a device array (fpiwarp.arrays): read in place
             self._src = image.data
+        self._pyramid = DevicePyramid(be, h, w, c) if antialias else None
+        self._options = None
         self._zero_copy = be.zero_copy and self.out.nbytes >= ZERO_COPY_MIN_BYTES
         if out is not None:  # a device array: written in place, read() returns it
             self._dst, self._zero_copy = out.data, None
@@ -490,12 +496,20 @@ class DeviceWarp:
         block, kind = be._upload_block(transform.inverse)
         name, options, self.local = tiled_program(be, *self._sampling, kind)
         kern = be.kernel(name, options)
-        kern.set_args(block, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), self._cval4)
+        self._options = options
+        extra = self._pyramid.args() if self._pyramid is not None else ()
+        kern.set_args(block, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), self._cval4,
+                      *extra)
         self._kernel = kern
 
     def launch(self):
         """Enqueue the kernel over the output; returns without waiting."""
         be = self.backend
+        pyramid = self._pyramid
+        if pyramid is not None and (pyramid.built < pyramid.top or not self._own_source):
+            pyramid.reset()
+            pyramid.build(self._options, self._src)
+            self._kernel.set_arg(11, np.int32(pyramid.built))
         be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, global_size(self.local, self.output_shape), self.local)
 
     def finish(self):

@@ -51,6 +51,7 @@ import numpy as np
 
 from ...block import describe
 from ...block.many import BlockStack, inverses
+from .pyramid import DevicePyramid
 from .tiles import global_size, tiled_program
 
 #: Bytes of input plus output one chunk of a batch holds at most (each
@@ -164,6 +165,8 @@ class BatchLaunch:
         self.sampling = (dtype, c, order, mode, self.ow, antialias)
         self.cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self.keep = []  # the launches' block and index buffers, alive as long as this object
+        self.antialias = bool(antialias)
+        self.pyramid = None  # antialiased: the pyramids of a chunk's images, rebuilt for each chunk
 
     def enqueue(self, queue, src, dst, a, b, wait_for=None):
         """Enqueue the launches of images [a, b) (one per kind, and per
@@ -173,11 +176,25 @@ class BatchLaunch:
         for kind, rows, blocks, which in _launches(be, self.groups, a, b):
             name, options, local = tiled_program(be, *self.sampling, kind)  # the single warp's tiles
             kern = be.kernel(name, (*options, "-DFW_BATCH=1"))
+            extra = self._pyramid_args(queue, src, options, a, b, wait_for) if self.antialias else ()
             self.keep.append((_small_buffer(cl, be.context, blocks), _small_buffer(cl, be.context, which)))
-            kern.set_args(self.keep[-1][0], src, *sizes, self.keep[-1][1], np.int32(rows))
+            kern.set_args(self.keep[-1][0], src, *sizes, *extra, self.keep[-1][1], np.int32(rows))
             events.append(cl.enqueue_nd_range_kernel(queue, kern, (*global_size(local, (self.oh, self.ow)), len(which)),
                                                      (*local, 1), wait_for=wait_for))
         return events
+
+
+    def _pyramid_args(self, queue, src, options, a, b, wait_for):
+        """The pyramid arguments of images [a, b) in ``src``, their levels
+        enqueued on ``queue`` once per chunk (in order before its kernels)."""
+        c = self.sampling[1]
+        if self.pyramid is None or self.pyramid.count < b - a:
+            self.pyramid = DevicePyramid(self.backend, self.h, self.w, c, count=b - a)
+        if self.pyramid.chunk != (a, b):
+            self.pyramid.reset()
+            self.pyramid.build(options, src, queue=queue, wait_for=wait_for, count=b - a)
+            self.pyramid.chunk = (a, b)
+        return self.pyramid.args()
 
 
 def warp_batch(backend, stack, transforms, output_shape, *, order, mode, cval, antialias=False, transfer=None):

@@ -23,6 +23,7 @@ from ...block.coarse import coarse_shape
 from ...block.layout import COARSE_FLOATS
 from ...errors import SizeLimitError
 from ..lru import LruCache
+from .pyramid import DevicePyramid, levels_needed
 from .tiles import global_size, has_newton, tiled_program
 
 #: Bytes allocated past an uploaded source image: sampling reads a pixel of
@@ -92,6 +93,12 @@ class ClJob:
         for i, v in enumerate(cval):
             cval4[0][i] = v
         args = [None, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), cval4[0]]
+        #: antialiased: the source's pyramid, rebuilt for every call (a host
+        #: array may have changed since the last one)
+        self._pyramid = DevicePyramid(be, h, w, c) if antialias else None
+        self._options = options
+        if antialias:
+            args += list(self._pyramid.args())
         if "-DFW_COARSE=1" in options:
             ny, nx = coarse_shape(ow, oh)
             self._records = cl.Buffer(be.context, mf.READ_WRITE, 4 * COARSE_FLOATS * nx * ny)
@@ -117,17 +124,39 @@ class ClJob:
         cl.enqueue_copy(be.queue, self._block, block, is_blocking=False)
         self._block_bytes = data
 
-    def run(self, image):
+    def run(self, image, inverse=None):
         """Warp ``image`` (of the job's shape and dtype) by the block set
-        last; returns a new array."""
+        last; returns a new array. Antialiased, ``inverse`` (the block's
+        map) bounds the pyramid levels built (:func:`levels_needed`; None:
+        all)."""
         be = self.backend
         cl, queue = be._cl, be.queue
-        out = np.empty(self.out_shape, dtype=self.dtype)
         if self._src_in_place:  # held until the kernel is done: an argument does not keep its buffer
             src = cl.Buffer(be.context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=image)
             self._kernel.set_arg(1, src)
         else:
+            src = self._src
             cl.enqueue_copy(queue, self._src, image, is_blocking=False)
+        pyramid = self._pyramid
+        if pyramid is not None:
+            pyramid.reset()
+            upto = None if inverse is None else levels_needed(inverse, self.output_shape, pyramid.top)
+            pyramid.build(self._options, src, upto)
+            self._kernel.set_arg(11, np.int32(pyramid.built))
+        out = self._launch(queue)
+        if pyramid is not None and pyramid.needs_more():  # a footprint past the estimate: all levels, again
+            pyramid.build(self._options, src)
+            self._kernel.set_arg(11, np.int32(pyramid.built))
+            out = self._launch(queue)
+        if self._src_in_place:
+            self._kernel.set_arg(1, self._src)  # the caller's image is not kept
+            del src
+        return out
+
+    def _launch(self, queue):
+        """Run the kernel as set into a new output array and read it back."""
+        cl, be = self.backend._cl, self.backend
+        out = np.empty(self.out_shape, dtype=self.dtype)
         if self._zero_copy:  # the kernel writes `out` itself
             dst = cl.Buffer(be.context, cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=out)
             self._kernel.set_arg(4, dst)
@@ -141,9 +170,6 @@ class ClJob:
             self._kernel.set_arg(4, None)
         else:
             cl.enqueue_copy(queue, out, self._dst)  # blocking: waits for the kernel and the copy
-        if self._src_in_place:
-            self._kernel.set_arg(1, self._src)  # the caller's image is not kept
-            del src
         return out
 
 
@@ -153,7 +179,8 @@ class BoundMap:
 
     def __init__(self, backend, transform):
         self.backend = backend
-        self.block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
+        self.inverse = transform.inverse
+        self.block = np.ascontiguousarray(self.inverse.params(), dtype=np.float32)
         self.kind = backend.block_kind(self.block)
         self._jobs = JobCache()
 
@@ -162,4 +189,4 @@ class BoundMap:
         with be._lock:
             job = self._jobs.get(be, image, output_shape, order, mode, cval, antialias, self.kind)
             job.set_block(self.block)
-            return job.run(image)
+            return job.run(image, self.inverse)
