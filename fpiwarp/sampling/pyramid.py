@@ -64,7 +64,7 @@ def level_coordinate(x, k):
 class Pyramid:
     """The levels of one (H, W, C) source, built once and reused by every
     antialiased warp of it (the numpy backend keeps one per call, per batch
-    and for read-only sources across calls; kernels keep theirs on the
+    and across calls by :class:`SourcePyramids`; kernels keep theirs on the
     device). Levels >= 1 are built when first read (a shrink that stays at
     level 0 builds none); thread-safe."""
 
@@ -104,65 +104,84 @@ class Pyramid:
         return sample(self.level(k), level_coordinate(x, k), level_coordinate(y, k), 1, mode, cval)
 
 
-def frozen_source_key(image):
-    """A key naming the pixels of ``image`` (an ndarray) for as long as they
-    cannot change, or None when they can.
+#: Host sources whose pyramids a :class:`SourcePyramids` keeps across calls.
+KEPT_SOURCES = 2
+#: Larger host sources get a pyramid per call (keeping one means keeping a
+#: copy of the source's pixels too).
+KEPT_SOURCE_BYTES = 128 << 20
 
-    Only read-only memory qualifies: ``image`` and every array it views
-    (its ``.base`` chain) must have ``writeable=False``, and the chain must
-    end at an array that owns its memory or at a ``bytes`` object (a
-    read-only view of a writeable array, a memory map or a foreign buffer
-    give None: someone else may write them). The key is the owner's
-    identity and the view's address, shape, strides and dtype; a cache that
-    holds the view keeps the owner alive, so the identity is not reused.
-    (numpy lets the owner of an array set ``writeable=True`` again: a
-    program that does so and writes must not rely on this key.)
+
+def _same_pixels(kept, image):
+    """Whether ``image`` has the shape, dtype and values of ``kept`` (NaNs
+    equal to NaNs in float images)."""
+    return kept.shape == image.shape and kept.dtype == image.dtype and \
+        np.array_equal(kept, image, equal_nan=image.dtype.kind in "fc")
+
+
+class SourcePyramids:
+    """The pyramids of the last ``size`` host (numpy) sources, kept across
+    calls so that many maps over one image (the preview, a batch with one
+    source, an animation, a :class:`fpiwarp.Warper` per frame) build its
+    levels once: every backend's one rule for host sources.
+
+    A kept pyramid is kept with a copy of the pixels it was built from and
+    serves a call only while the source's shape, dtype and pixels equal
+    that copy (``np.array_equal``, NaN equal to NaN): a writeable array
+    changed in place gets new levels, never stale ones; another array of
+    equal pixels is served the kept pyramid. (The comparison costs a
+    fraction of a millisecond for a 1080p RGB picture, tens of times less
+    than a build.) Sources over ``max_bytes`` are built for the call and
+    not kept.
+
+    ``build(pixels, *args)`` makes a pyramid: ``pixels`` is the kept copy
+    (equal to the source and never written), ``args`` those given to
+    :meth:`get` (a backend's device copy of the source, say). Thread-safe;
+    :meth:`clear` frees every kept pyramid; :attr:`builds` counts the
+    pyramids built (tests count reuse with it).
     """
-    if not isinstance(image, np.ndarray):
-        return None
-    owner = image
-    while isinstance(owner, np.ndarray):
-        if owner.flags.writeable:
-            return None
-        if owner.base is None:
-            break
-        if not isinstance(owner.base, (np.ndarray, bytes)):
-            return None
-        if isinstance(owner.base, bytes):
-            break
-        owner = owner.base
-    address = image.__array_interface__["data"][0]
-    return id(owner), address, image.shape, image.strides, image.dtype.str
 
-
-class PyramidCache:
-    """The pyramids of the last ``size`` read-only sources (see
-    :func:`frozen_source_key`), built by ``build(image)``; thread-safe.
-    :meth:`get` builds a pyramid for every other source without keeping it."""
-
-    def __init__(self, build, size):
+    def __init__(self, build, size=KEPT_SOURCES, max_bytes=KEPT_SOURCE_BYTES):
         self.build = build
         self.size = size
+        self.max_bytes = max_bytes
+        #: pyramids built so far
+        self.builds = 0
         self._lock = threading.Lock()
-        self._entries = {}
+        self._entries = []  # [(copy of the pixels, pyramid)], most recent last
 
-    def get(self, image):
-        key = frozen_source_key(image)
-        if key is None:
-            return self.build(image)
+    def get(self, image, *args):
+        """The pyramid of numpy ``image``: a kept one of equal pixels, else
+        ``build(copy of image, *args)`` (kept when ``image`` is small enough)."""
+        image = np.asarray(image)
+        if image.nbytes > self.max_bytes:
+            with self._lock:
+                self.builds += 1
+            return self.build(image, *args)
         with self._lock:
-            hit = self._entries.pop(key, None)
-            if hit is not None:
-                self._entries[key] = hit  # most recent last
-                return hit[1]
-        built = self.build(image)
+            for i in range(len(self._entries) - 1, -1, -1):
+                pixels, pyramid = self._entries[i]
+                if _same_pixels(pixels, image):
+                    self._entries.append(self._entries.pop(i))
+                    return pyramid
+        pixels = np.array(image, copy=True)
+        pixels.flags.writeable = False
+        pyramid = self.build(pixels, *args)
         with self._lock:
-            self._entries[key] = (image, built)  # the view keeps its owner (the key's identity) alive
-            while len(self._entries) > self.size:
-                self._entries.pop(next(iter(self._entries)))
-        return built
+            self.builds += 1
+            self._entries.append((pixels, pyramid))
+            del self._entries[:max(0, len(self._entries) - self.size)]
+        return pyramid
+
+    def __len__(self):
+        with self._lock:
+            return len(self._entries)
+
+    def values(self):
+        """The kept pyramids, least recently used first."""
+        with self._lock:
+            return [pyramid for _, pyramid in self._entries]
 
     def clear(self):
-        """Forget every kept pyramid (and release their sources)."""
+        """Forget every kept pyramid (and the copies of their pixels)."""
         with self._lock:
             self._entries.clear()

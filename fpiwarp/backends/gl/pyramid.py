@@ -14,18 +14,19 @@ pass would (both far below one antialiased frame); the host build is the
 reference's own arithmetic, needs no render-to-float-texture support and
 no feedback loop (which WebGL2 forbids), and serves the browser page too.
 
-:class:`PyramidCache` keeps the last source's atlas: an antialiased warp
-of the same pixels (another map, the next frame of an animation, a batch
-with one source) reuses it. A host array is compared with a copy of the
-pixels the atlas was built from, so a writeable array changed in place
-gets a new atlas, never stale levels.
+:class:`PyramidCache` keeps the last few sources' atlases by the rule of
+every backend (:class:`~fpiwarp.sampling.pyramid.SourcePyramids`): an
+antialiased warp of the same pixels (another map, the next frame of an
+animation, a batch with one source) reuses one. A host array is compared
+with a copy of the pixels the atlas was built from, so a writeable array
+changed in place gets a new atlas, never stale levels.
 """
 
 import moderngl
 import numpy as np
 
 from ...block.sampling_rules import AA_MAX_LEVEL
-from ...sampling.pyramid import Pyramid, level_sizes
+from ...sampling.pyramid import Pyramid, SourcePyramids, level_sizes
 from .programs import set_uniform
 
 #: The texture unit the atlas is bound to (the source is on unit 0).
@@ -91,40 +92,38 @@ def upload_atlas(ctx, atlas, tex=None):
 
 
 class PyramidCache:
-    """The atlas of the last source antialiased in one context (see the
-    module's docstring)."""
+    """The atlases of the last few sources antialiased in one context: the
+    host part is :class:`~fpiwarp.sampling.pyramid.SourcePyramids` (every
+    backend's one rule: reused while the pixels equal the copy kept with
+    them), the texture is that of the atlas used last, uploaded once."""
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self.builds = 0  # atlases built so far (tests: reuse)
-        self._pixels = None  # a copy of the pixels the atlas was built from
-        self._atlas = None
-        self._rects = None
+        self.atlases = SourcePyramids(build_atlas)  # (atlas array, rects) per source
+        self._uploaded = None  # the (atlas, rects) in the texture
         self._texture = None
 
+    @property
+    def builds(self):
+        """Atlases built so far (tests: reuse)."""
+        return self.atlases.builds
+
     def host(self, image):
-        """(atlas array, rects) for ``image``, built only when its pixels
-        (shape, dtype, values) differ from the last one's."""
-        cached = self._pixels
-        if cached is None or cached.shape != image.shape or cached.dtype != image.dtype or \
-                not np.array_equal(cached, image):
-            self._atlas, self._rects = build_atlas(image)
-            self._pixels = np.array(image, copy=True)
-            self.builds += 1
-            if self._texture is not None:
-                self._texture.release()
-                self._texture = None
-        return self._atlas, self._rects
+        """(atlas array, rects) for ``image``, built only when no kept
+        atlas's pixels (shape, dtype, values) equal its."""
+        return self.atlases.get(image)
 
     def texture(self, image):
         """(float32 atlas texture, rects) for ``image``, uploaded once per atlas."""
-        atlas, rects = self.host(image)
-        if self._texture is None:
-            self._texture = upload_atlas(self.ctx, atlas)
-        return self._texture, rects
+        entry = self.host(image)
+        if self._uploaded is not entry:
+            self._texture = upload_atlas(self.ctx, entry[0], self._texture)
+            self._uploaded = entry
+        return self._texture, entry[1]
 
     def release(self):
-        """Free the texture and forget the pixels."""
+        """Free the texture and forget the atlases."""
         if self._texture is not None:
             self._texture.release()
-        self._texture = self._pixels = self._atlas = self._rects = None
+        self._texture = self._uploaded = None
+        self.atlases.clear()

@@ -11,10 +11,10 @@ Antialiased warps read a source pyramid (:mod:`fpiwarp.sampling.pyramid`),
 built once per call (its levels when first needed), once per batch for
 images that are one source (a stack warped by one map is one wide image; a
 stack of equal images with one map each shares the pyramid of consecutive
-equal images), and kept across calls for the last :data:`PYRAMID_CACHE_SIZE`
-read-only sources (:func:`~fpiwarp.sampling.pyramid.frozen_source_key`:
-``image.flags.writeable = False`` on an array that owns its memory).
-A writeable array is never served a kept pyramid.
+equal images), and kept across calls for the last few sources by
+:class:`~fpiwarp.sampling.pyramid.SourcePyramids` (every backend's rule: a
+kept pyramid serves a source only while its pixels equal the copy kept
+with it, so an array changed in place is never served stale levels).
 """
 
 import collections
@@ -24,16 +24,15 @@ import numpy as np
 
 from ...sampling.antialias import iter_footprints, sample_antialiased
 from ...sampling.positions import CHUNK_PIXELS, iter_source_positions, source_positions
-from ...sampling.pyramid import Pyramid, PyramidCache
+from ...sampling.pyramid import Pyramid, SourcePyramids
 from ...sampling.sampler import sample, to_dtype
 
 #: Source-position maps a bound map keeps (one per output size).
 MAP_CACHE_SIZE = 2
-#: Read-only sources whose pyramids are kept across calls (each holds its
-#: source and float64 levels of about 2/3 of the source's samples).
-PYRAMID_CACHE_SIZE = 3
-#: The kept pyramids (see the module docstring); ``PYRAMIDS.clear()`` frees them.
-PYRAMIDS = PyramidCache(Pyramid, PYRAMID_CACHE_SIZE)
+#: The kept pyramids (see the module docstring; each holds a copy of its
+#: source and float64 levels of about 2/3 of its samples); ``PYRAMIDS.clear()``
+#: frees them.
+PYRAMIDS = SourcePyramids(Pyramid)
 
 
 def probe():

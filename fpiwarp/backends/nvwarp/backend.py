@@ -24,7 +24,7 @@ keep the same shape.
 Antialiased warps read the source's pyramid (:mod:`.pyramid`), built on
 the device by a Warp kernel: once per prepared job (:class:`DeviceWarp`)
 and per batch, and for numpy sources kept across calls while the pixels
-are unchanged (:class:`~.pyramid.HostPyramids`), so many maps over one
+are unchanged (:class:`~fpiwarp.sampling.pyramid.SourcePyramids`), so many maps over one
 image build its levels once.
 """
 
@@ -44,8 +44,9 @@ import numpy as np
 from ...block import MAX_ROWS, describe
 from ...block.sampling_rules import MODES
 from ...errors import ArgumentError
+from ...sampling.pyramid import SourcePyramids
 from .prepared import BoundMap, JobCache
-from .pyramid import DevicePyramid, HostPyramids
+from .pyramid import DevicePyramid
 
 #: Environment variable naming the Warp device, e.g. "cpu" or "cuda:0".
 DEVICE_ENV = "FPIWARP_WARP_DEVICE"
@@ -238,7 +239,8 @@ class Backend:
                            wp.zeros(1, dtype=wp.vec3i, device=self.device)]
         self._buffers = {}
         self._jobs = JobCache()  # prepared jobs of plain warp_image calls
-        self.host_pyramids = HostPyramids()  # antialiasing's pyramids of recent host sources
+        #: antialiasing's pyramids of recent host sources (the one rule of every backend)
+        self.host_pyramids = SourcePyramids(lambda pixels, src: self.pyramid([(src, 0)], *pixels.shape))
         self.block_kind = None  # what the kernels specialize on, of the block uploaded last
         self._batch_runner = None  # the batch kernels, loaded on first use
 
@@ -475,7 +477,7 @@ class DeviceWarp:
     until the next call on the backend; use it from one thread. An
     antialiased job takes the image's pyramid when it is made (a Warp
     array's built then, a numpy image's kept across calls while its pixels
-    are unchanged: :class:`~.pyramid.HostPyramids`) and reads it in every
+    are unchanged: :class:`~fpiwarp.sampling.pyramid.SourcePyramids`) and reads it in every
     launch: it warps the image as it was then (as on CUDA, where the image
     is copied then); make a new job after changing the image.
     """
@@ -506,7 +508,7 @@ class DeviceWarp:
         if antialias:  # one kernel for every map, order and mode, which it reads at run time
             self._kernel = be.image_kernel(None, None, None, None, dtype, antialias=True)
             pyramid = (be.pyramid([(self._src, 0)], *image.shape) if resident
-                       else be.host_pyramids.get(be, image, self._src))
+                       else be.host_pyramids.get(image, self._src))
             self._pyramid = pyramid.args
         self._antialias = antialias
         self._block = None

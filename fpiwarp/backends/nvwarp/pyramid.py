@@ -13,7 +13,6 @@ where every image of a launch reads one pyramid (a batch of one source).
 import numpy as np
 
 from ...sampling.pyramid import level_sizes
-from ..lru import LruCache
 
 
 class DevicePyramid:
@@ -57,42 +56,3 @@ class DevicePyramid:
     def args(self):
         """The kernels' (pyramid, levels) arguments."""
         return [self.array, self.levels]
-
-
-#: Host sources whose pyramids a backend keeps across calls.
-KEPT_SOURCES = 2
-#: Larger host sources get a pyramid per call (keeping one means keeping a
-#: copy of the source's pixels too).
-KEPT_SOURCE_BYTES = 128 << 20
-
-
-class HostPyramids(LruCache):
-    """The pyramids of the last :data:`KEPT_SOURCES` host (numpy) sources,
-    kept across calls so that many maps over one image (an animation, a
-    :class:`fpiwarp.Warper` per frame, repeated previews) build its levels
-    once. A kept pyramid serves a call only while the source's pixels equal
-    the copy of them kept with it (a comparison: a fraction of a
-    millisecond for a 1080p RGB picture, tens of times less than a build), so a
-    writeable array changed in place gets new levels, never old ones.
-    Sources over :data:`KEPT_SOURCE_BYTES` are not kept."""
-
-    def __init__(self, size=KEPT_SOURCES):
-        super().__init__(size)
-
-    def get(self, backend, image, src):
-        """The :class:`DevicePyramid` of numpy ``image`` (H, W, C), ``src``
-        being its array on the device."""
-        if image.nbytes > KEPT_SOURCE_BYTES:
-            return backend.pyramid([(src, 0)], *image.shape)
-        key = (image.__array_interface__["data"][0], image.shape, image.strides, image.dtype.str)
-        made = []
-
-        def make():
-            made.append(True)
-            return [image.copy(), backend.pyramid([(src, 0)], *image.shape)]
-
-        entry = self.lookup(key, make)
-        if not made and not np.array_equal(entry[0], image, equal_nan=image.dtype.kind == "f"):
-            np.copyto(entry[0], image)
-            entry[1] = backend.pyramid([(src, 0)], *image.shape)
-        return entry[1]

@@ -37,6 +37,7 @@ from ...block import describe
 from ...block.codegen import opencl_preamble
 from ...block.sampling_rules import MODES
 from ...errors import BackendUnavailableError, SizeLimitError
+from ...sampling.pyramid import SourcePyramids
 from ..lru import LruCache
 from . import build_cache
 from .prepared import IMAGE_SLACK, ZERO_COPY_MIN_BYTES, BoundMap, JobCache
@@ -233,6 +234,9 @@ class Backend:
         self._block_cache = None  # (block bytes, its buffer, kind options) of the last upload
         self._kinds = LruCache(16)  # block bytes -> kind options, of recent blocks
         self._jobs = JobCache()  # prepared jobs of plain warp_image calls
+        #: antialiasing's device pyramids of recent host sources (the one rule of
+        #: every backend), their levels built as calls need them
+        self.host_pyramids = SourcePyramids(lambda pixels: DevicePyramid(self, *pixels.shape))
         self._lock = threading.Lock()
 
     def __repr__(self):

@@ -23,7 +23,7 @@ from ...block.coarse import coarse_shape
 from ...block.layout import COARSE_FLOATS
 from ...errors import SizeLimitError
 from ..lru import LruCache
-from .pyramid import DevicePyramid, levels_needed
+from .pyramid import levels_needed
 from .tiles import global_size, has_newton, tiled_program
 
 #: Bytes allocated past an uploaded source image: sampling reads a pixel of
@@ -38,6 +38,8 @@ ZERO_COPY_MIN_BYTES = 1 << 20
 #: False: each pixel solves alone (read when a job is made: benchmarks
 #: compare the two, benchmarks/local_speed.py).
 COARSE_PASS = True
+#: The index of warp_image_aa's first pyramid argument (after cval).
+PYRAMID_ARG = 8
 #: Jobs kept per backend (plain calls) and per bound map, least recently used dropped.
 MAX_JOBS = 4
 
@@ -93,12 +95,12 @@ class ClJob:
         for i, v in enumerate(cval):
             cval4[0][i] = v
         args = [None, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), cval4[0]]
-        #: antialiased: the source's pyramid, rebuilt for every call (a host
-        #: array may have changed since the last one)
-        self._pyramid = DevicePyramid(be, h, w, c) if antialias else None
+        #: antialiased: the source's pyramid is the backend's kept one of
+        #: these pixels (:attr:`~.backend.Backend.host_pyramids`), set at each call
+        self._antialias = antialias
         self._options = options
         if antialias:
-            args += list(self._pyramid.args())
+            args += [None, None, np.int32(0), np.int32(0), np.int32(1), None]
         if "-DFW_COARSE=1" in options:
             ny, nx = coarse_shape(ow, oh)
             self._records = cl.Buffer(be.context, mf.READ_WRITE, 4 * COARSE_FLOATS * nx * ny)
@@ -137,21 +139,25 @@ class ClJob:
         else:
             src = self._src
             cl.enqueue_copy(queue, self._src, image, is_blocking=False)
-        pyramid = self._pyramid
-        if pyramid is not None:
-            pyramid.reset()
-            upto = None if inverse is None else levels_needed(inverse, self.output_shape, pyramid.top)
+        pyramid = be.host_pyramids.get(image) if self._antialias else None
+        if pyramid is not None:  # a kept pyramid has the levels of earlier calls: only missing ones are built
+            upto = pyramid.top if inverse is None else levels_needed(inverse, self.output_shape, pyramid.top)
             pyramid.build(self._options, src, upto)
-            self._kernel.set_arg(11, np.int32(pyramid.built))
+            self._set_pyramid(pyramid)
         out = self._launch(queue)
         if pyramid is not None and pyramid.needs_more():  # a footprint past the estimate: all levels, again
             pyramid.build(self._options, src)
-            self._kernel.set_arg(11, np.int32(pyramid.built))
+            self._set_pyramid(pyramid)
             out = self._launch(queue)
         if self._src_in_place:
             self._kernel.set_arg(1, self._src)  # the caller's image is not kept
             del src
         return out
+
+    def _set_pyramid(self, pyramid):
+        """Point the kernel at ``pyramid`` (its arguments follow cval)."""
+        for i, arg in enumerate(pyramid.args(), start=PYRAMID_ARG):
+            self._kernel.set_arg(i, arg)
 
     def _launch(self, queue):
         """Run the kernel as set into a new output array and read it back."""
