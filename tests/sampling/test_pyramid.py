@@ -1,7 +1,10 @@
 """The source pyramid of antialiased warps (fpiwarp.sampling.pyramid) and
 the reference's footprint sampling over it: level sizes and halving,
 constant images, energy above the output Nyquist, continuity across level
-switches, bounded work, and the numpy backend's reuse of pyramids."""
+switches, bounded work, and the reuse of host sources' pyramids
+(SourcePyramids) on every backend."""
+
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -13,9 +16,10 @@ from support import kernel_cases
 import fpiwarp
 import fpiwarp.sampling.antialias as aa
 from fpiwarp import FPI, Mobius, RLinear
+from fpiwarp.backends import get_backend
 from fpiwarp.backends.numpy import backend as numpy_backend
 from fpiwarp.block.sampling_rules import AA_LEVEL_SPAN, AA_MAX_LEVEL, AA_MAX_TAPS, COORD_LIMIT
-from fpiwarp.sampling.pyramid import Pyramid, frozen_source_key, halve, level_coordinate, level_sizes
+from fpiwarp.sampling.pyramid import Pyramid, SourcePyramids, halve, level_coordinate, level_sizes
 
 
 def _warp(img, transform, shape, **kw):
@@ -235,46 +239,82 @@ def builds(monkeypatch):
     numpy_backend.PYRAMIDS.clear()
 
 
-def test_read_only_sources_reuse_their_pyramid_across_calls(builds):
-    img = kernel_cases.make_image((120, 160), np.uint8)
-    img.flags.writeable = False
-    maps = [RLinear(1 / s, 0, 0) for s in (8, 9, 10)]
-    first = [_warp(img, t, (12, 16)) for t in maps]
-    assert len(builds) == 1
-    again = [_warp(img, t, (12, 16)) for t in maps]
-    assert len(builds) == 1 and all(np.array_equal(a, b) for a, b in zip(first, again))
-    _warp(img.copy(), maps[0], (12, 16))  # another array: its own pyramid
-    assert len(builds) == 2
+# --- the one reuse rule of host sources (SourcePyramids), on every backend ----------------
 
 
-def test_a_writeable_source_is_never_served_a_stale_pyramid(builds):
-    img = kernel_cases.make_image((120, 160, 3), np.uint8)
-    shrink = RLinear(0.1, 0, 0)
-    before = _warp(img, shrink, (12, 16))
-    img[:] = 255 - img  # in place
-    after = _warp(img, shrink, (12, 16))
-    assert np.array_equal(after, _warp(img.copy(), shrink, (12, 16)))
-    assert not np.array_equal(before, after) and len(builds) == 3
-    base = kernel_cases.make_image((120, 160, 3), np.uint8)
-    view = base.view()
+def _source_pyramids(name):
+    """The :class:`SourcePyramids` backend ``name`` keeps host sources' pyramids in."""
+    if name == "numpy":
+        return numpy_backend.PYRAMIDS
+    backend = get_backend(name)
+    return backend.warper.pyramids.atlases if name == "gl" else backend.host_pyramids
+
+
+def test_host_sources_reuse_their_pyramid_while_their_pixels_are_unchanged(any_backend, monkeypatch):
+    """Every backend: maps over one image build its pyramid once; another
+    array of equal pixels reuses it; a writeable array changed in place (or
+    the base of a read-only view) gets new levels, giving the picture a
+    freshly built pyramid gives; a source over the byte limit is not kept."""
+    kept = _source_pyramids(any_backend)
+    kept.clear()
+    maps = [RLinear(1 / s, 0.04 * s, 1 + 2j) for s in (6, 9)]
+
+    def aa(image, transform=maps[0]):
+        return fpiwarp.warp_image(image, transform, (10, 14), antialias=True, backend=any_backend)
+
+    img = kernel_cases.make_image((60, 80, 3), np.uint8, seed=11)
+    first = aa(img)
+    builds = kept.builds
+    assert builds >= 1 and len(kept) == 1
+    again = [aa(img, m) for m in maps]
+    assert kept.builds == builds and np.array_equal(again[0], first)
+    assert np.array_equal(aa(img.copy()), first) and kept.builds == builds  # equal pixels, another array
+    img[:, :40] = 255 - img[:, :40]  # in place
+    changed = aa(img)
+    assert kept.builds == builds + 1 and not np.array_equal(changed, first)
+    kept.clear()
+    assert len(kept) == 0 and np.array_equal(aa(img.copy()), changed)  # as a fresh pyramid gives
+    view = img.view()
     view.flags.writeable = False  # read-only, but its base is not
-    assert frozen_source_key(view) is None
-    first = _warp(view, shrink, (12, 16))
-    base[:] = 255 - base
-    assert not np.array_equal(_warp(view, shrink, (12, 16)), first)
+    seen = aa(view)
+    img[:] = 255 - img
+    assert not np.array_equal(aa(view), seen)
+    kept.clear()
+    assert np.array_equal(aa(img.copy()), aa(view))
+    monkeypatch.setattr(kept, "max_bytes", img.nbytes - 1)
+    kept.clear()
+    builds = kept.builds
+    pictures = [aa(img) for _ in range(2)]
+    assert kept.builds == builds + 2 and len(kept) == 0 and np.array_equal(*pictures)
 
 
-def test_frozen_source_key_names_only_memory_nobody_can_write():
-    owner = np.zeros((4, 5, 3), np.uint8)
-    assert frozen_source_key(owner) is None
-    owner.flags.writeable = False
-    assert frozen_source_key(owner) == frozen_source_key(owner[:, :, :])  # views of the same pixels
-    assert frozen_source_key(owner[1:]) != frozen_source_key(owner)
-    assert frozen_source_key(np.frombuffer(bytes(60), np.uint8).reshape(4, 5, 3)) is not None
-    assert frozen_source_key(np.frombuffer(bytearray(60), np.uint8)) is None
-    other = np.zeros((4, 5, 3), np.uint8)
-    other.flags.writeable = False
-    assert frozen_source_key(other) != frozen_source_key(owner)
+def test_source_pyramids_keep_the_last_few_sources_by_their_pixels():
+    made = []
+    kept = SourcePyramids(lambda pixels: made.append(pixels) or len(made), size=2)
+    a = np.array([[[0.5], [np.nan]]])
+    assert kept.get(a) == 1 and kept.get(a.copy()) == 1  # NaN equals NaN
+    assert not made[0].flags.writeable and made[0] is not a  # built from a kept copy
+    assert kept.get(a.astype(np.float32)) == 2  # another dtype
+    assert kept.get(a.reshape(2, 1, 1)) == 3  # another shape: a (dtype float32) is dropped
+    assert kept.get(a.astype(np.float32)) == 2 and kept.get(a) == 4
+    assert kept.builds == 4 and len(kept) == 2
+    kept.clear()
+    assert len(kept) == 0 and kept.get(a) == 5
+
+
+def test_source_pyramids_are_thread_safe():
+    """Threads getting the pyramids of a few sources at once all get a
+    pyramid of their source's pixels; at most ``size`` are kept."""
+    kept = SourcePyramids(lambda pixels: pixels.sum(), size=2)
+    sources = [np.full((8, 8, 1), v, np.uint16) for v in range(4)]
+
+    def work(i):
+        src = sources[i % 4]
+        return kept.get(src) == src.sum()
+
+    with ThreadPoolExecutor(4) as pool:
+        assert all(pool.map(work, range(400)))
+    assert len(kept) == 2
 
 
 def test_a_batch_of_one_source_builds_one_pyramid(builds):
@@ -292,7 +332,8 @@ def test_a_batch_of_one_source_builds_one_pyramid(builds):
     other = stack.copy()
     other[1] = 255 - other[1]
     got = fpiwarp.warp_batch(other, maps, (16, 20), antialias=True, backend="numpy")
-    assert len(builds) == 3 and np.array_equal(got[1], _warp(other[1].copy(), maps[1], (16, 20)))
+    # images 0 and 2 are the kept source's pixels: only the changed one builds
+    assert len(builds) == 1 and np.array_equal(got[1], _warp(other[1].copy(), maps[1], (16, 20)))
 
 
 def test_a_map_that_stays_at_level_zero_builds_no_level():

@@ -121,17 +121,6 @@ def test_calls_on_one_host_image_share_its_pyramid_until_it_changes(warp, monkey
     assert not np.array_equal(first, second)
 
 
-def test_large_host_images_get_a_pyramid_per_call(warp, monkeypatch):
-    """A source over KEPT_SOURCE_BYTES is not kept (nor its copy): each call builds its levels."""
-    from fpiwarp.backends.nvwarp import pyramid
-
-    monkeypatch.setattr(pyramid, "KEPT_SOURCE_BYTES", 1000)
-    img = make_image((40, 50, 3), np.uint8, seed=8)
-    built = _count_builds(monkeypatch, warp)
-    pictures = [fpiwarp.warp_image(img, SHRINK, (8, 10), antialias=True, backend="warp") for _ in range(2)]
-    assert len(built) == 2 and np.array_equal(*pictures)
-
-
 @pytest.mark.parametrize("dtype", [np.uint8, np.float32])
 def test_device_arrays_antialias_over_the_pyramid(warp, dtype):
     """Warp arrays, one image and a strided (channels-first) stack, warped

@@ -83,10 +83,38 @@ def test_a_footprint_past_the_estimate_gets_its_levels(backend, monkeypatch):
 
     image = kernel_cases.make_image((120, 160, 3), np.uint8, seed=7)
     want = backend.warp_image(image, MIXED, (24, 40), antialias=True, **KW)
+    backend.host_pyramids.clear()  # else the first call's levels are kept
     monkeypatch.setattr(prepared, "levels_needed", lambda *a: 0)  # an estimate that misses every level
     got = backend.warp_image(image, MIXED, (24, 40), antialias=True, **KW)
     np.testing.assert_array_equal(got, want)
     assert prepared.levels_needed is not None
+
+
+def test_calls_and_bound_maps_reuse_the_kept_device_pyramid(backend, monkeypatch):
+    """warp_image calls and bound maps over one host image read one device
+    pyramid: a call needing more levels than the kept pyramid has builds
+    only those, and every picture is that of a freshly built pyramid."""
+    from fpiwarp.backends.opencl import prepared
+
+    image = kernel_cases.make_image((120, 160, 3), np.uint8, seed=12)
+    mild, strong = RLinear(0.5, 0, 0.3j), SHRINK_8  # levels 0..1 and 0..3 or more
+    fresh = {}
+    for m in (mild, strong):
+        backend.host_pyramids.clear()
+        fresh[m] = backend.warp_image(image, m, (24, 40), antialias=True, **KW)
+    backend.host_pyramids.clear()
+    builds = backend.host_pyramids.builds
+    estimates = []
+    real = prepared.levels_needed
+    monkeypatch.setattr(prepared, "levels_needed", lambda *a: estimates.append(real(*a)) or estimates[-1])
+    np.testing.assert_array_equal(backend.warp_image(image, mild, (24, 40), antialias=True, **KW), fresh[mild])
+    (pyramid,) = backend.host_pyramids.values()
+    assert pyramid.built == estimates[0] < pyramid.top
+    bound = backend.bind(strong)
+    np.testing.assert_array_equal(bound.warp_image(image.copy(), (24, 40), antialias=True, **KW), fresh[strong])
+    assert backend.host_pyramids.values() == [pyramid] and pyramid.built == estimates[1] > estimates[0]
+    np.testing.assert_array_equal(backend.warp_image(image, mild, (24, 40), antialias=True, **KW), fresh[mild])
+    assert backend.host_pyramids.builds == builds + 1
 
 
 def test_the_estimate_covers_uniform_shrinks():
