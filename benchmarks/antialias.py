@@ -24,9 +24,9 @@ Cost. 1920 × 1080 RGB uint8 pictures warped by the FPI of each shrink
 factor into an output of the shrunk size, on each backend that
 antialiases, with and without antialiasing, timed side by side (best of
 several calls after a warm-up); the ratio is the cost of antialiasing.
-The source is read-only, as a tool that warps one picture many times
-holds it, so that backends that keep a pyramid per source reuse it
-(numpy: see fpiwarp.backends.numpy.backend); each call builds nothing
+Every call after the first warps the same pixels, so that every backend
+reuses the source's kept pyramid (fpiwarp.sampling.pyramid.SourcePyramids),
+as when a tool warps one picture many times; each call builds nothing
 else again. A backend that fails a call is reported with its error, the
 others still run. Beside them, for uniform shrinks, the peers'
 antialiased resizers on the same picture: ``cv2.resize(INTER_AREA)`` and
@@ -240,7 +240,7 @@ def cost(quick, log=print, backends=None):
 
 
 def _cost_image(h, w):
-    """The cost table's random RGB uint8 source, read-only (see the module docstring)."""
+    """The cost table's random RGB uint8 source (read-only: the benchmark never writes it)."""
     image = np.random.default_rng(0).integers(0, 256, size=(h, w, 3), dtype=np.uint8)
     image.flags.writeable = False
     return image

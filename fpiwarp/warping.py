@@ -175,13 +175,15 @@ def warp_image(
         bounded number of samples per pixel (the numpy reference is
         ``fpiwarp/sampling/antialias.py`` and ``pyramid.py``). Backends
         that antialias declare it (``capabilities.antialias``).
-        The pyramid is built once per call, and reused: on "numpy", for a
-        stack warped by one map, for consecutive equal images of a
-        ``warp_batch`` with one map each, and across calls for the last 3
-        read-only sources (``image.flags.writeable = False`` on an array
-        that owns its memory; a writeable array, or a read-only view of
-        one, is never served a kept pyramid;
-        ``fpiwarp.backends.numpy.backend.PYRAMIDS.clear()`` frees them).
+        The pyramid is built once per call, and reused across calls by
+        one rule on every backend
+        (:class:`fpiwarp.sampling.pyramid.SourcePyramids`): the pyramids
+        of the last 2 numpy sources are kept with a copy of their pixels
+        and serve a call only while the source's shape, dtype and pixels
+        equal that copy, so an array changed in place (read-only or not)
+        is never served stale levels, and another array of equal pixels
+        reuses them; sources over 128 MiB are not kept. Device-array
+        sources get their pyramid built per call.
         Default False: this call's plain result is the reference
         semantics (the exact point samples ``cv2.remap`` and
         ``skimage.transform.warp`` give, what registration and pipelines

@@ -242,20 +242,12 @@ def builds(monkeypatch):
 # --- the one reuse rule of host sources (SourcePyramids), on every backend ----------------
 
 
-def _source_pyramids(name):
-    """The :class:`SourcePyramids` backend ``name`` keeps host sources' pyramids in."""
-    if name == "numpy":
-        return numpy_backend.PYRAMIDS
-    backend = get_backend(name)
-    return backend.warper.pyramids.atlases if name == "gl" else backend.host_pyramids
-
-
 def test_host_sources_reuse_their_pyramid_while_their_pixels_are_unchanged(any_backend, monkeypatch):
     """Every backend: maps over one image build its pyramid once; another
     array of equal pixels reuses it; a writeable array changed in place (or
     the base of a read-only view) gets new levels, giving the picture a
     freshly built pyramid gives; a source over the byte limit is not kept."""
-    kept = _source_pyramids(any_backend)
+    kept = get_backend(any_backend).host_pyramids
     kept.clear()
     maps = [RLinear(1 / s, 0.04 * s, 1 + 2j) for s in (6, 9)]
 

@@ -36,6 +36,12 @@ class Backend:
         return self._warper
 
     @property
+    def host_pyramids(self):
+        """Antialiasing's atlases of recent host sources (the current
+        warper's: :class:`~fpiwarp.sampling.pyramid.SourcePyramids`)."""
+        return self.warper.pyramids.atlases
+
+    @property
     def ctx(self):
         return self.warper.ctx
 

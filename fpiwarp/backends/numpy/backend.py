@@ -109,6 +109,8 @@ class Backend:
     """The float64 reference (see the module docstring)."""
 
     name = "numpy"
+    #: antialiasing's pyramids of recent host sources (every backend has one)
+    host_pyramids = PYRAMIDS
 
     def map_points(self, transform, points):
         return transform(points)
