@@ -33,19 +33,17 @@
 /* FW_BATCH (fpiwarp/backends/opencl_batch.py): one launch warps (or maps
  * the points of) many images, launch dimension 2 naming which. Item z of
  * the launch reads block z of the stacked blocks (block_rows float4 rows
- * each; 0 shares one block), item which[z] of the stacked inputs and item
- * which[z] + out_first of the stacked outputs (in_items, out_items values
- * apart): a chunk's sources may sit in a buffer of their own while the
- * outputs go to the whole output stack. Everything else is the single
- * kernel's code, so a batch equals the loop bit for bit. */
+ * each; 0 shares one block) and item which[z] of the stacked inputs and
+ * outputs (in_items, out_items values apart). Everything else is the
+ * single kernel's code, so a batch equals the loop bit for bit. */
 #ifdef FW_BATCH
-#define FW_BATCH_ARGS , __global const int *restrict which, int block_rows, int out_first
-#define FW_BATCH_SELECT(fw_in, fw_out, in_items, out_items)      \
-    do {                                                         \
-        size_t fw_z = get_global_id(2), fw_n = which[fw_z];      \
-        block += fw_z * block_rows;                              \
-        fw_in += fw_n * (size_t)(in_items);                      \
-        fw_out += (fw_n + out_first) * (size_t)(out_items);      \
+#define FW_BATCH_ARGS , __global const int *restrict which, int block_rows
+#define FW_BATCH_SELECT(fw_in, fw_out, in_items, out_items) \
+    do {                                                    \
+        size_t fw_z = get_global_id(2), fw_n = which[fw_z]; \
+        block += fw_z * block_rows;                         \
+        fw_in += fw_n * (size_t)(in_items);                 \
+        fw_out += fw_n * (size_t)(out_items);               \
     } while (0)
 #else
 #define FW_BATCH_ARGS

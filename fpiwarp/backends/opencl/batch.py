@@ -165,19 +165,16 @@ class BatchLaunch:
         self.cval4 = cl.cltypes.make_float4(*(list(cval) + [0.0] * (4 - c)))
         self.keep = []  # the launches' block and index buffers, alive as long as this object
 
-    def enqueue(self, queue, src, dst, a, b, wait_for=None, dst_from=None):
+    def enqueue(self, queue, src, dst, a, b, wait_for=None):
         """Enqueue the launches of images [a, b) (one per kind, and per
-        constant-memory load of blocks) after ``wait_for``; their events.
-        ``dst`` holds the outputs from image ``dst_from`` on (default
-        ``a``: like ``src``)."""
+        constant-memory load of blocks) after ``wait_for``; their events."""
         cl, be, events = self.cl, self.backend, []
         sizes = (np.int32(self.w), np.int32(self.h), dst, np.int32(self.ow), np.int32(self.oh), self.cval4)
-        out_first = np.int32(a - (a if dst_from is None else dst_from))
         for kind, rows, blocks, which in _launches(be, self.groups, a, b):
             name, options, local = tiled_program(be, *self.sampling, kind)  # the single warp's tiles
             kern = be.kernel(name, (*options, "-DFW_BATCH=1"))
             self.keep.append((_small_buffer(cl, be.context, blocks), _small_buffer(cl, be.context, which)))
-            kern.set_args(self.keep[-1][0], src, *sizes, self.keep[-1][1], np.int32(rows), out_first)
+            kern.set_args(self.keep[-1][0], src, *sizes, self.keep[-1][1], np.int32(rows))
             events.append(cl.enqueue_nd_range_kernel(queue, kern, (*global_size(local, (self.oh, self.ow)), len(which)),
                                                      (*local, 1), wait_for=wait_for))
         return events
@@ -220,11 +217,8 @@ def warp_arrays(backend, src, dst, transforms, *, order, mode, cval, antialias=F
 
 
 def _run_zero_copy(cl, backend, stack, out, chunks, launch):
-    """Each chunk copied into one kept device buffer (the queue is in
-    order: a chunk's copy runs after the last chunk's kernels); the
-    kernels write the caller's output in place (one USE_HOST_PTR buffer
-    over all of it), made visible by one map at the end: the host waits
-    once per batch, not once per chunk.
+    """Each chunk copied into one kept device buffer; the kernels write the
+    caller's output in place (USE_HOST_PTR), made visible by a map.
 
     The chunks are small (:data:`ZERO_COPY_CHUNK_BYTES_PER_UNIT`): the copy
     leaves a chunk in the caches, where the kernel's gathers find it. One
@@ -236,13 +230,13 @@ def _run_zero_copy(cl, backend, stack, out, chunks, launch):
     mf, queue = cl.mem_flags, backend.queue
     per = chunks[0][1] - chunks[0][0]
     src = kept_buffer(backend, "in0", per * stack[0].nbytes + backend.image_slack, mf.READ_ONLY)
-    dst = cl.Buffer(backend.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
     for a, b in chunks:
-        cl.enqueue_copy(queue, src, stack[a:b], is_blocking=False)
-        launch(queue, src, dst, a, b, None, 0)
-    mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out.shape, out.dtype)
-    event.wait()
-    del mapped
+        cl.enqueue_copy(queue, src, stack[a:b])
+        dst = cl.Buffer(backend.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
+        launch(queue, src, dst, a, b, None)
+        mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
+        event.wait()
+        del mapped
     queue.finish()
 
 
@@ -325,6 +319,6 @@ def _enqueue_points(cl, backend, groups, src, dst, p, a, b):
     for kind, rows, blocks, which in _launches(backend, groups, a, b):
         kern = backend.kernel("map_points", kind + options)
         keep.append((_small_buffer(cl, backend.context, blocks), _small_buffer(cl, backend.context, which)))
-        kern.set_args(keep[-1][0], src, dst, np.int32(p), keep[-1][1], np.int32(rows), np.int32(0))
+        kern.set_args(keep[-1][0], src, dst, np.int32(p), keep[-1][1], np.int32(rows))
         cl.enqueue_nd_range_kernel(backend.queue, kern, (total, 1, len(which)), (backend.local_x, 1, 1))
     return keep
