@@ -494,9 +494,11 @@ class DeviceWarp:
         self._kernel = kern
 
     def launch(self):
-        """Enqueue the kernel over the output; returns without waiting."""
+        """Enqueue the kernel over the output; returns its event without
+        waiting (on a profiling queue it times the kernel alone)."""
         be = self.backend
-        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, global_size(self.local, self.output_shape), self.local)
+        return be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, global_size(self.local, self.output_shape),
+                                              self.local)
 
     def finish(self):
         """Wait until the launched kernels are done."""
