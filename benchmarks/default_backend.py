@@ -168,7 +168,8 @@ def markdown(result):
                          f"{(r['call_s'] - r['kernel_s']) * 1e3:.2f} ms |")
     name, imp, first, second = result["first_call"]
     lines += ["", f"First default call in a new process (after the first ever run): backend {name}, import "
-              f"{imp:.2f} s, first 4K RGB uint8 warp {first:.2f} s (second {second * 1e3:.0f} ms).", ""]
+              f"{imp:.2f} s, first 4K RGB uint8 warp {first:.2f} s (second {second * 1e3:.0f} ms).", "",
+              common.CPU_PROFILE_POINTER, ""]
     return "\n".join(lines)
 
 
