@@ -27,7 +27,9 @@ work-item (AVX registers), or 16 where the device's native float vector
 is 16 wide (AVX-512). On the AVX-512 EPYC above, kernel time on PoCL's
 profiling clock, best of 9 interleaved (loaded machine, load 8-9), 8
 lanes / 16 lanes: 4K RGB uint8 1.05-1.22x, 4K RGB float32 1.25-1.28x,
-256² RGB uint8 1.12-1.13x (same outputs). :func:`tune` measures the
+256² RGB uint8 1.12-1.13x (same outputs); whole calls were mixed (4K
+float32 1.04x faster, 4K uint8 0.87x, one run at load 3), hence a
+measured choice, not a default. :func:`tune` measures the
 tiles at 8 lanes, then the best tile at the device's native width when
 that is 16, and keeps the faster (:func:`lanes_for`).
 
