@@ -28,10 +28,14 @@ is 16 wide (AVX-512). On the AVX-512 EPYC above, kernel time on PoCL's
 profiling clock, best of 9 interleaved (loaded machine, load 8-9), 8
 lanes / 16 lanes: 4K RGB uint8 1.05-1.22x, 4K RGB float32 1.25-1.28x,
 256² RGB uint8 1.12-1.13x (same outputs); whole calls were mixed (4K
-float32 1.04x faster, 4K uint8 0.87x, one run at load 3), hence a
-measured choice, not a default. :func:`tune` measures the
-tiles at 8 lanes, then the best tile at the device's native width when
-that is 16, and keeps the faster (:func:`lanes_for`).
+float32 1.04x faster, 4K uint8 0.87x, one run at load 3), and with the measured
+16 x 16 tiles (load 2) 4K float32 took the same wall time (less CPU
+time), 4K uint8 1.18x -> 1.27x cv2.remap, 256² 2.27x -> 1.92x, while the
+1024² uint8 tuning warp ran 1.49x faster at 16 lanes: the tuning warp
+does not predict the large calls, so 16 lanes stay opt-in.
+``FPIWARP_OPENCL_LANES=16`` sets them, and ``tune(wide=True)`` measures
+the best tile at the device's native width when that is 16 and keeps the
+faster (:func:`lanes_for`).
 
 Every tile and width gives the same output bit for bit (each pixel's code does not
 depend on the tile; tests/backends/opencl/test_opencl_tiles.py), so the
@@ -46,6 +50,7 @@ import time
 from . import build_cache
 
 ENV_TILE = "FPIWARP_OPENCL_TILE"
+ENV_LANES = "FPIWARP_OPENCL_LANES"
 #: The tile used until one is measured: (pixels per row, rows).
 DEFAULT_TILE = (64, 8)
 #: The tiles :func:`tune` measures (each a multiple of the 8 vector lanes wide).
@@ -98,6 +103,14 @@ def tile_for(backend):
 def lanes_for(backend):
     """The pixels per work-item warp_image samples on a CPU ``backend``:
     the measured width (see the module docstring), else :data:`DEFAULT_LANES`."""
+    value = os.environ.get(ENV_LANES, "").strip()
+    if value:
+        if value not in {str(n) for n in candidate_lanes(backend)}:
+            from ...errors import ArgumentError  # noqa: PLC0415
+
+            raise ArgumentError(f"{ENV_LANES} must be one of {list(candidate_lanes(backend))} on this device, "
+                                f"got {value!r}")
+        return int(value)
     try:
         lanes = int(json.loads(_path(backend).read_text(encoding="utf-8")).get("lanes", DEFAULT_LANES))
     except (OSError, ValueError, AttributeError, TypeError):
@@ -115,10 +128,12 @@ def tuned(backend):
     return _fixed() is not None or _path(backend).exists()
 
 
-def tune(backend, candidates=CANDIDATES):
+def tune(backend, candidates=CANDIDATES, wide=False):
     """Measure ``candidates`` on ``backend`` and keep the fastest (in memory
-    and on disk); returns {"tile": (x, y), "seconds": {"XxY": s}}. Does
-    nothing but report the tile on devices that do not tile."""
+    and on disk); returns {"tile": (x, y), "lanes": n, "seconds": {"XxY": s}}.
+    ``wide``: the best tile at 16 lanes too, where the device's vectors are
+    16 wide ("XxYx16"). Does nothing but report the tile on devices that do
+    not tile."""
     import numpy as np  # noqa: PLC0415
 
     from ...maps.fpi import FPI  # noqa: PLC0415
@@ -132,6 +147,8 @@ def tune(backend, candidates=CANDIDATES):
     block = np.ascontiguousarray(f.inverse.params(), dtype=np.float32)
     kind = backend.block_kind(block)
     saved = getattr(backend, "_tile", None), backend.lanes
+    if not wide:
+        backend.lanes = DEFAULT_LANES
 
     def measure(shapes):
         """{(tile, lanes): best seconds} of warps in each (tile, lanes), interleaved."""
@@ -155,7 +172,7 @@ def tune(backend, candidates=CANDIDATES):
     try:
         with backend._lock:
             times = measure([(tile, DEFAULT_LANES) for tile in candidates])
-            if times and WIDE_LANES in candidate_lanes(backend):
+            if times and wide and WIDE_LANES in candidate_lanes(backend):
                 tile = min(times, key=times.get)[0]
                 times = measure([(tile, DEFAULT_LANES), (tile, WIDE_LANES)]) | {
                     k: v for k, v in times.items() if k[0] != tile}

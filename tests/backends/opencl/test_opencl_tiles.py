@@ -274,7 +274,10 @@ def test_the_tile_is_measured_once_per_device_and_kept(opencl_backend, monkeypat
     assert not tuning.tuned(be) and tuning.tile_for(be) == tuning.DEFAULT_TILE
     assert tuning.lanes_for(be) == tuning.DEFAULT_LANES
     monkeypatch.setattr(tuning, "TUNING_SHAPE", (96, 128, 3))
-    result = tuning.tune(be, candidates=((64, 8), (16, 16), (4096, 4096)))  # the last does not fit a group
+    monkeypatch.delenv(tuning.ENV_LANES, raising=False)
+    plain = tuning.tune(be, candidates=((64, 8), (16, 16)))
+    assert set(plain["seconds"]) == {"64x8", "16x16"} and plain["lanes"] == tuning.DEFAULT_LANES
+    result = tuning.tune(be, candidates=((64, 8), (16, 16), (4096, 4096)), wide=True)  # the last does not fit
     # the tiles at 8 lanes, then the fastest of them at 16 where the device's vectors are 16 wide
     wide = set(result["seconds"]) - {"64x8", "16x16"}
     assert result["tile"] in ((64, 8), (16, 16)) and {"64x8", "16x16"} <= set(result["seconds"])
@@ -283,6 +286,12 @@ def test_the_tile_is_measured_once_per_device_and_kept(opencl_backend, monkeypat
     assert tuning.tuned(be) and tuning.tile_for(be) == result["tile"]
     monkeypatch.setattr(be, "_tile", None)  # a new process: read back from the disk
     assert tuning.tile_for(be) == result["tile"] and tuning.lanes_for(be) == result["lanes"] and be.tune() is None
+    monkeypatch.setenv(tuning.ENV_LANES, "8")
+    assert tuning.lanes_for(be) == 8
+    monkeypatch.setenv(tuning.ENV_LANES, "12")
+    with pytest.raises(fpiwarp.ArgumentError, match="FPIWARP_OPENCL_LANES must be one of"):
+        tuning.lanes_for(be)
+    monkeypatch.delenv(tuning.ENV_LANES)
     monkeypatch.setattr(be, "_tile", None)
     monkeypatch.setenv(tuning.ENV_TILE, "32,16")
     assert tuning.tile_for(be) == (32, 16)
