@@ -163,6 +163,11 @@ def machine_facts(backends=True):
     return facts
 
 
+#: The line the CPU speed tables end with: the profile of their misses
+#: (results/cpu_profile.md, written by hand from sampled profiles).
+CPU_PROFILE_POINTER = "Where the time goes on this machine's CPU, and what was tried: cpu_profile.md."
+
+
 def machine_line(info):
     """One line: CPU model, ISA, PoCL device, cores and load (for printed tables)."""
     load = info.get("load_average_1_5_15min")

@@ -12,7 +12,11 @@ machine hits every row alike):
 * ``warp_batch`` of 64 images of 512² RGB uint8 with 64 maps against the
   loop of ``warp_image`` over them, per batching kernel backend;
 * the first default call in a new process (a subprocess: import, probe,
-  the cached measurement and kernel binaries, the 4K warp).
+  the cached measurement and kernel binaries, the 4K warp);
+* where the opencl call's time goes (:func:`kernel_split`): the kernel
+  alone, timed by the device's profiling clock on a queue of its own,
+  against the whole call of the table above; what is left is the host's
+  work per call (copies, allocation, Python, waits).
 
 It writes ``default_backend.md`` (and ``.json``) under ``--out``
 (default ``benchmarks/results``), headed by the CPU model, its vector ISA
@@ -94,6 +98,34 @@ def batch_rows(n, h, w, rounds, backends):
     return rows
 
 
+def kernel_split(cases, rounds, images):
+    """[{case, call_s, kernel_s}] for the opencl rows of ``images``: the
+    warp_image kernel of each ``cases`` entry (h, w, dtype) alone, best of
+    ``rounds`` launches on a profiling queue (a backend object of its own,
+    the same program and tile as the calls)."""
+    import pyopencl as cl
+
+    from fpiwarp.backends.opencl.backend import Backend
+
+    be = Backend()
+    be.queue = cl.CommandQueue(be.context, properties=cl.command_queue_properties.PROFILING_ENABLE)
+    calls = {r["case"]: r["seconds"] for r in images if r["impl"].endswith(", opencl")}
+    rows = []
+    for h, w, dtype in cases:
+        img = test_image(h, w, dtype, np.random.default_rng(0))
+        job = be.prepare_warp(img, (h, w), order=1, mode="constant", cval=np.zeros(3))
+        job.set_map(fpiwarp.FPI(*corner_quads(h, w)))
+        job.launch().wait()  # warm-up
+        best = float("inf")
+        for _ in range(rounds):
+            event = job.launch()
+            event.wait()
+            best = min(best, (event.profile.end - event.profile.start) * 1e-9)
+        case = f"{w}x{h} RGB {dtype}"
+        rows.append({"case": case, "call_s": calls[case], "kernel_s": best})
+    return rows
+
+
 FIRST_CALL = """
 import time
 t0 = time.perf_counter()
@@ -127,9 +159,17 @@ def markdown(result):
     for r in result["batches"]:
         lines.append(f"| {r['case']} | {r['impl']} | {r['loop_s'] * 1e3:.1f} ms | {r['batch_s'] * 1e3:.1f} ms | "
                      f"{r['speedup']:.2f}x |")
+    if result.get("split"):
+        lines += ["", "Where the opencl call's time goes (the kernel alone on a profiling queue, best of the same "
+                  "rounds; the rest is the host's work per call):", "",
+                  "| case | whole call | kernel alone | rest |", "|---|---|---|---|"]
+        for r in result["split"]:
+            lines.append(f"| {r['case']} | {r['call_s'] * 1e3:.2f} ms | {r['kernel_s'] * 1e3:.2f} ms | "
+                         f"{(r['call_s'] - r['kernel_s']) * 1e3:.2f} ms |")
     name, imp, first, second = result["first_call"]
     lines += ["", f"First default call in a new process (after the first ever run): backend {name}, import "
-              f"{imp:.2f} s, first 4K RGB uint8 warp {first:.2f} s (second {second * 1e3:.0f} ms).", ""]
+              f"{imp:.2f} s, first 4K RGB uint8 warp {first:.2f} s (second {second * 1e3:.0f} ms).", "",
+              common.CPU_PROFILE_POINTER, ""]
     return "\n".join(lines)
 
 
@@ -146,8 +186,12 @@ def main(argv=None):
     images += image_rows(64 if args.quick else 256, 64 if args.quick else 256, "uint8", rounds * 10, backends,
                          warper=True)
     n, side = (4, 64) if args.quick else (64, 512)
+    small = 64 if args.quick else 256
+    split = kernel_split([(*big, "uint8"), (*big, "float32"), (small, small, "uint8")], rounds * 10,
+                         images) if "opencl" in backends else []
     result = {"default": fpiwarp.default_backend(), "ranking": fpiwarp.backends.default.ranking(),
-              "rounds": rounds, "images": images, "batches": batch_rows(n, side, side, rounds, backends),
+              "rounds": rounds, "images": images, "split": split,
+              "batches": batch_rows(n, side, side, rounds, backends),
               "first_call": first_call(), "machine": common.machine_facts()}
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.machine import cpu_model
+from benchmarks import common
 
 RESULTS = Path(__file__).resolve().parent / "results"
 ISA_FLAGS = ("avx512f", "avx512bw", "avx512vl", "avx2", "fma", "sse4_2", "neon", "asimd")
@@ -64,7 +64,7 @@ def machine():
     except AttributeError:  # not Linux
         cores = os.cpu_count()
     backend = get_backend("warp")
-    return {"cpu": cpu_model(), "isa": cpu_isa(), "cores": cores, "load_start": list(os.getloadavg()),
+    return {"cpu": common.cpu_model(), "isa": cpu_isa(), "cores": cores, "load_start": list(os.getloadavg()),
             "warp": warp.__version__, "warp_device": str(backend.device), "warp_threads": backend.threads,
             "cv2": cv2.__version__, "cv2_threads": cv2.getNumThreads()}
 
@@ -185,6 +185,7 @@ def report(facts, best, starts):
         else:
             lines.append(f"| {k} | {run['import_s']:.2f} | {run['first_call_s']:.2f} | {run['second_call_s']:.4f} | "
                          f"{'yes' if run['compiled'] else 'no'} |")
+    lines += ["", common.CPU_PROFILE_POINTER]
     return "\n".join(lines) + "\n"
 
 

@@ -619,7 +619,7 @@ FW_FN fw_c fw_map_wirtinger(fw_block_t block, fw_c z, fw_c *dz, fw_c *dzb)
 
 /* The rest needs the image type: FW_T (uchar, ushort or float) with FW_C
  * interleaved channels, FW_INT 1 for integer types and FW_TOP their
- * largest value, FW_ORDER and FW_MODE; FW_VN (1 or 8, default 1), the
+ * largest value, FW_ORDER and FW_MODE; FW_VN (1, 8 or 16, default 1), the
  * number of pixels one work-item samples at once.
  *
  * Sampling is written for FW_VN lanes with OpenCL vector types (floatN,
@@ -650,15 +650,45 @@ typedef uint8 fw_uv;
 #define FW_LANE(v, k) (v).s##k
 #define FW_VLOAD(p) vload8(0, p)
 #define FW_CONVERT(type, v) convert_##type##8(v)
+#elif FW_VN == 16
+typedef float16 fw_fv;
+typedef int16 fw_iv;
+typedef uint16 fw_uv;
+#define FW_EACH_LANE(X, a) X(0, a) X(1, a) X(2, a) X(3, a) X(4, a) X(5, a) X(6, a) X(7, a) X(8, a) X(9, a) X(10, a) X(11, a) X(12, a) X(13, a) X(14, a) X(15, a)
+/* lanes 10-15 are components .sa-.sf */
+#define FW_LANE(v, k) FW_LANE16_##k(v)
+#define FW_LANE16_0(v) (v).s0
+#define FW_LANE16_1(v) (v).s1
+#define FW_LANE16_2(v) (v).s2
+#define FW_LANE16_3(v) (v).s3
+#define FW_LANE16_4(v) (v).s4
+#define FW_LANE16_5(v) (v).s5
+#define FW_LANE16_6(v) (v).s6
+#define FW_LANE16_7(v) (v).s7
+#define FW_LANE16_8(v) (v).s8
+#define FW_LANE16_9(v) (v).s9
+#define FW_LANE16_10(v) (v).sa
+#define FW_LANE16_11(v) (v).sb
+#define FW_LANE16_12(v) (v).sc
+#define FW_LANE16_13(v) (v).sd
+#define FW_LANE16_14(v) (v).se
+#define FW_LANE16_15(v) (v).sf
+#define FW_VLOAD(p) vload16(0, p)
+#define FW_CONVERT(type, v) convert_##type##16(v)
 #else
-#error "FW_VN must be 1 or 8"
+#error "FW_VN must be 1, 8 or 16"
 #endif
 /* expr(k), a scalar expression of lane k, for every lane as one vector */
 #if FW_VN == 1
 #define FW_GATHER(type, expr) ((type)(expr(0)))
 #else
 #define FW_GATHER(type, expr) ((type)(expr(0) FW_GATHER_REST(expr)))
+#if FW_VN == 8
 #define FW_GATHER_REST(expr) , expr(1), expr(2), expr(3), expr(4), expr(5), expr(6), expr(7)
+#else
+#define FW_GATHER_REST(expr) , expr(1), expr(2), expr(3), expr(4), expr(5), expr(6), expr(7), expr(8), expr(9), \
+                             expr(10), expr(11), expr(12), expr(13), expr(14), expr(15)
+#endif
 #endif
 
 #if FW_ORDER == 0

@@ -60,6 +60,8 @@ NARROW_LOCAL_X = (64, 256)
 GROUP_STEP = 64
 #: On CPUs warp_image samples 8 pixels per work-item in 8-lane vector types
 #: (AVX registers): PoCL does not vectorize the sampling across work-items.
+#: A device whose native float vector is 16 wide may run 16, opt-in
+#: (:func:`.tuning.lanes_for`). map_points reads 8 points per work-item.
 VECTOR_LANES_CPU = 8
 def _import_cl():
     import pyopencl as cl  # noqa: PLC0415 - optional dependency, imported lazily
@@ -225,9 +227,10 @@ class Backend:
         #: and warp_image writes its output array in place
         self.zero_copy = is_cpu and bool(self.device.host_unified_memory)
         self.local_x = min(LOCAL_X_CPU if is_cpu else LOCAL_X_OTHER, self.device.max_work_group_size)
-        #: pixels one work-item samples at once, in vector types (see fpiwarp_map.h)
-        self.lanes = VECTOR_LANES_CPU if is_cpu and self.local_x % VECTOR_LANES_CPU == 0 else 1
-        if self.lanes == 8:  # map_points reads and writes 8 points per work-item as vectors (fpiwarp.cl)
+        vectors = is_cpu and self.local_x % VECTOR_LANES_CPU == 0
+        #: pixels one work-item samples at once, in vector types (see fpiwarp_map.h); set below
+        self.lanes = VECTOR_LANES_CPU if vectors else 1
+        if vectors:  # map_points reads and writes 8 points per work-item as vectors (fpiwarp.cl)
             self._point_options += ("-DFW_POINT_VN=8",)
         self._kernels = {}  # build options -> {kernel name: Kernel}
         self._buffers = {}  # (role, nbytes) -> Buffer
@@ -238,6 +241,10 @@ class Backend:
         #: every backend), their levels built as calls need them
         self.host_pyramids = SourcePyramids(lambda pixels: DevicePyramid(self, *pixels.shape))
         self._lock = threading.Lock()
+        if vectors:
+            from .tuning import lanes_for  # noqa: PLC0415
+
+            self.lanes = lanes_for(self)
 
     def __repr__(self):
         return f"<fpiwarp opencl backend on {self.device_label!r}>"
@@ -507,14 +514,16 @@ class DeviceWarp:
         self._kernel = kern
 
     def launch(self):
-        """Enqueue the kernel over the output; returns without waiting."""
+        """Enqueue the kernel over the output; returns its event without
+        waiting (on a profiling queue it times the kernel alone)."""
         be = self.backend
         pyramid = self._pyramid
         if pyramid is not None and (pyramid.built < pyramid.top or not self._own_source):
             pyramid.reset()
             pyramid.build(self._options, self._src)
             self._kernel.set_arg(11, np.int32(pyramid.built))
-        be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, global_size(self.local, self.output_shape), self.local)
+        return be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, global_size(self.local, self.output_shape),
+                                              self.local)
 
     def finish(self):
         """Wait until the launched kernels are done."""

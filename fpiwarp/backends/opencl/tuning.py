@@ -22,7 +22,22 @@ chosen on an AVX2 machine. So the tile is a per-device choice:
   candidate is one build (seconds on PoCL), later builds come from the
   caches. ``FPIWARP_OPENCL_TILE=X,Y`` fixes the tile instead.
 
-Every tile gives the same output bit for bit (each pixel's code does not
+The vector width goes with the tile: warp_image samples 8 pixels per
+work-item (AVX registers), or 16 where the device's native float vector
+is 16 wide (AVX-512). On the AVX-512 EPYC above, kernel time on PoCL's
+profiling clock, best of 9 interleaved (loaded machine, load 8-9), 8
+lanes / 16 lanes: 4K RGB uint8 1.05-1.22x, 4K RGB float32 1.25-1.28x,
+256² RGB uint8 1.12-1.13x (same outputs); whole calls were mixed (4K
+float32 1.04x faster, 4K uint8 0.87x, one run at load 3), and with the measured
+16 x 16 tiles (load 2) 4K float32 took the same wall time (less CPU
+time), 4K uint8 1.18x -> 1.27x cv2.remap, 256² 2.27x -> 1.92x, while the
+1024² uint8 tuning warp ran 1.49x faster at 16 lanes: the tuning warp
+does not predict the large calls, so 16 lanes stay opt-in.
+``FPIWARP_OPENCL_LANES=16`` sets them, and ``tune(wide=True)`` measures
+the best tile at the device's native width when that is 16 and keeps the
+faster (:func:`lanes_for`).
+
+Every tile and width gives the same output bit for bit (each pixel's code does not
 depend on the tile; tests/backends/opencl/test_opencl_tiles.py), so the
 choice changes speed only. Only CPU devices with vector lanes use tiles
 (:mod:`.tiles`).
@@ -35,10 +50,13 @@ import time
 from . import build_cache
 
 ENV_TILE = "FPIWARP_OPENCL_TILE"
+ENV_LANES = "FPIWARP_OPENCL_LANES"
 #: The tile used until one is measured: (pixels per row, rows).
 DEFAULT_TILE = (64, 8)
 #: The tiles :func:`tune` measures (each a multiple of the 8 vector lanes wide).
 CANDIDATES = ((64, 8), (32, 16), (16, 16), (32, 8))
+#: Pixels per work-item until measured, and the widths :func:`tune` may choose.
+DEFAULT_LANES, WIDE_LANES = 8, 16
 #: The measurement: (rows, cols, channels) of uint8, and timed rounds.
 TUNING_SHAPE, TUNING_ROUNDS = (1024, 1024, 3), 5
 
@@ -82,15 +100,40 @@ def tile_for(backend):
     return backend._tile
 
 
+def lanes_for(backend):
+    """The pixels per work-item warp_image samples on a CPU ``backend``:
+    the measured width (see the module docstring), else :data:`DEFAULT_LANES`."""
+    value = os.environ.get(ENV_LANES, "").strip()
+    if value:
+        if value not in {str(n) for n in candidate_lanes(backend)}:
+            from ...errors import ArgumentError  # noqa: PLC0415
+
+            raise ArgumentError(f"{ENV_LANES} must be one of {list(candidate_lanes(backend))} on this device, "
+                                f"got {value!r}")
+        return int(value)
+    try:
+        lanes = int(json.loads(_path(backend).read_text(encoding="utf-8")).get("lanes", DEFAULT_LANES))
+    except (OSError, ValueError, AttributeError, TypeError):
+        lanes = DEFAULT_LANES
+    return lanes if lanes in candidate_lanes(backend) else DEFAULT_LANES
+
+
+def candidate_lanes(backend):
+    """The widths this device may run: 8, and 16 where its native float vector is 16 wide."""
+    return (DEFAULT_LANES, WIDE_LANES) if backend.device.native_vector_width_float >= WIDE_LANES else (DEFAULT_LANES,)
+
+
 def tuned(backend):
     """Whether ``backend``'s tile was measured (or fixed by FPIWARP_OPENCL_TILE)."""
     return _fixed() is not None or _path(backend).exists()
 
 
-def tune(backend, candidates=CANDIDATES):
+def tune(backend, candidates=CANDIDATES, wide=False):
     """Measure ``candidates`` on ``backend`` and keep the fastest (in memory
-    and on disk); returns {"tile": (x, y), "seconds": {"XxY": s}}. Does
-    nothing but report the tile on devices that do not tile."""
+    and on disk); returns {"tile": (x, y), "lanes": n, "seconds": {"XxY": s}}.
+    ``wide``: the best tile at 16 lanes too, where the device's vectors are
+    16 wide ("XxYx16"). Does nothing but report the tile on devices that do
+    not tile."""
     import numpy as np  # noqa: PLC0415
 
     from ...maps.fpi import FPI  # noqa: PLC0415
@@ -103,30 +146,45 @@ def tune(backend, candidates=CANDIDATES):
             [[0.03 * w, 0.02 * h], [0.95 * w, -0.04 * h], [1.02 * w, 1.05 * h], [-0.05 * w, 0.93 * h]])
     block = np.ascontiguousarray(f.inverse.params(), dtype=np.float32)
     kind = backend.block_kind(block)
-    saved = getattr(backend, "_tile", None)
-    jobs = {}
+    saved = getattr(backend, "_tile", None), backend.lanes
+    if not wide:
+        backend.lanes = DEFAULT_LANES
+
+    def measure(shapes):
+        """{(tile, lanes): best seconds} of warps in each (tile, lanes), interleaved."""
+        jobs = {}
+        for tile, lanes in shapes:
+            backend._tile, backend.lanes = tile, lanes
+            if not usable(backend, tile):
+                continue
+            job = type(backend._jobs)().get(backend, image, (h, w), 1, "constant", np.zeros(c), False, kind)
+            job.set_block(block)
+            job.run(image)  # the warm-up: builds
+            jobs[tile, lanes] = job
+        times = {shape: float("inf") for shape in jobs}
+        for _ in range(TUNING_ROUNDS):
+            for shape, job in jobs.items():
+                t0 = time.perf_counter()
+                job.run(image)
+                times[shape] = min(times[shape], time.perf_counter() - t0)
+        return times
+
     try:
         with backend._lock:
-            for tile in (t for t in candidates if usable(backend, t)):
-                backend._tile = tile
-                job = type(backend._jobs)().get(backend, image, (h, w), 1, "constant", np.zeros(c), False, kind)
-                job.set_block(block)
-                job.run(image)  # the warm-up: builds
-                jobs[tile] = job
-            times = {tile: float("inf") for tile in jobs}
-            for _ in range(TUNING_ROUNDS):
-                for tile, job in jobs.items():
-                    t0 = time.perf_counter()
-                    job.run(image)
-                    times[tile] = min(times[tile], time.perf_counter() - t0)
+            times = measure([(tile, DEFAULT_LANES) for tile in candidates])
+            if times and wide and WIDE_LANES in candidate_lanes(backend):
+                tile = min(times, key=times.get)[0]
+                times = measure([(tile, DEFAULT_LANES), (tile, WIDE_LANES)]) | {
+                    k: v for k, v in times.items() if k[0] != tile}
     finally:
-        backend._tile = saved
+        backend._tile, backend.lanes = saved
     if not times:
         return {"tile": tile_for(backend), "seconds": {}}
-    best = min(times, key=times.get)
-    backend._tile = best
+    best, lanes = min(times, key=times.get)
+    backend._tile, backend.lanes = best, lanes
     backend._jobs.clear()  # jobs prepared with the old tile
-    record = {"tile": list(best), "seconds": {f"{x}x{y}": s for (x, y), s in times.items()},
+    record = {"tile": list(best), "lanes": lanes,
+              "seconds": {f"{x}x{y}" + ("" if n == DEFAULT_LANES else f"x{n}"): s for ((x, y), n), s in times.items()},
               "device": backend.device_label, "measured": time.strftime("%Y-%m-%dT%H:%M:%S")}
     try:
         path = _path(backend)
@@ -136,4 +194,4 @@ def tune(backend, candidates=CANDIDATES):
         os.replace(tmp, path)
     except OSError:
         pass
-    return {"tile": best, "seconds": record["seconds"]}
+    return {"tile": best, "lanes": lanes, "seconds": record["seconds"]}

@@ -55,10 +55,11 @@ def maps(w, h):
     }
 
 
-def run_kernel(image, transform, output_shape, order, mode, cval, *, tile=None, extra=()):
+def run_kernel(image, transform, output_shape, order, mode, cval, *, tile=None, extra=(), lanes=None):
     """warp_image's kernel launched by hand: the backend's build options for
     this kind of call, with the work-group ``tile`` (local_x, local_y; None:
-    the backend's one-row width) and ``extra`` options."""
+    the backend's one-row width), ``lanes`` pixels per work-item (None: the
+    backend's) and ``extra`` options."""
     import pyopencl as cl
 
     be = backend()
@@ -67,6 +68,8 @@ def run_kernel(image, transform, output_shape, order, mode, cval, *, tile=None, 
     block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
     name, options, local_x = be.image_program(image.dtype, c, order, mode, ow, False, be.block_kind(block))
     local = (local_x, 1)
+    if lanes is not None:
+        options = (*(o for o in options if not o.startswith("-DFW_VN=")), f"-DFW_VN={lanes}")
     if tile is not None:
         local = tile
         options = tuple(o for o in options if not o.startswith("-DFW_LOCAL_X="))
@@ -120,6 +123,15 @@ def test_tiles_only_on_cpus_without_antialiasing_or_newton(opencl_backend):
     assert opencl_tiles.global_size((64, 8), (17, 130)) == (192, 24)
 
 
+def _seeded(transform):
+    """Whether the opencl warp_image of ``transform`` takes the coarse pass
+    (fpiwarp/block/coarse.py): a map with a Newton core."""
+    from fpiwarp.backends.opencl import prepared, tiles
+
+    block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
+    return prepared.COARSE_PASS and tiles.has_newton(backend().block_kind(block))
+
+
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(case=cases())
 def test_tiles_and_the_interior_path_give_the_one_row_general_output_bit_for_bit(opencl_backend, case):
@@ -134,8 +146,14 @@ def test_tiles_and_the_interior_path_give_the_one_row_general_output_bit_for_bit
         np.testing.assert_array_equal(wide, general)
         for tile in CANDIDATES[1:3]:  # the tuner's other choices (tall tiles)
             np.testing.assert_array_equal(run_kernel(image, transform, shape, order, mode, cval, tile=tile), general)
+        for tile in (None, (64, 8), (16, 16)):  # 16 pixels per work-item, which tune() may choose
+            np.testing.assert_array_equal(run_kernel(image, transform, shape, order, mode, cval, tile=tile,
+                                                     lanes=16), general)
     got = fpiwarp.warp_image(image, transform, shape, order=order, mode=mode, cval=cval, backend="opencl")
-    np.testing.assert_array_equal(got, general)
+    if _seeded(transform):  # warp_image takes the coarse pass: other (nearer) positions than a per-pixel solve
+        assert_images_agree(got, general, image.dtype.type)
+    else:
+        np.testing.assert_array_equal(got, general)
     want = fpiwarp.warp_image(image, transform, shape, order=order, mode=mode, cval=cval, backend="numpy")
     if np.isfinite(fpiwarp.source_positions(transform, shape)).all():  # Newton misses may differ at its edge
         assert_images_agree(got, want, image.dtype.type)
@@ -260,17 +278,32 @@ def test_the_tile_is_measured_once_per_device_and_kept(opencl_backend, monkeypat
     monkeypatch.setenv("FPIWARP_CACHE_DIR", str(tmp_path))
     monkeypatch.delenv(tuning.ENV_TILE, raising=False)
     be = backend()
-    monkeypatch.setattr(be, "_tile", None)
+    monkeypatch.setattr(be, "_tile", None, raising=False)
+    monkeypatch.setattr(be, "lanes", be.lanes)  # tune() sets the measured width
     if be.lanes == 1:
         assert tuning.tune(be)["tile"] is None
         return
     assert not tuning.tuned(be) and tuning.tile_for(be) == tuning.DEFAULT_TILE
+    assert tuning.lanes_for(be) == tuning.DEFAULT_LANES
     monkeypatch.setattr(tuning, "TUNING_SHAPE", (96, 128, 3))
-    result = tuning.tune(be, candidates=((64, 8), (16, 16), (4096, 4096)))  # the last does not fit a group
-    assert result["tile"] in ((64, 8), (16, 16)) and set(result["seconds"]) == {"64x8", "16x16"}
+    monkeypatch.delenv(tuning.ENV_LANES, raising=False)
+    plain = tuning.tune(be, candidates=((64, 8), (16, 16)))
+    assert set(plain["seconds"]) == {"64x8", "16x16"} and plain["lanes"] == tuning.DEFAULT_LANES
+    result = tuning.tune(be, candidates=((64, 8), (16, 16), (4096, 4096)), wide=True)  # the last does not fit
+    # the tiles at 8 lanes, then the fastest of them at 16 where the device's vectors are 16 wide
+    wide = set(result["seconds"]) - {"64x8", "16x16"}
+    assert result["tile"] in ((64, 8), (16, 16)) and {"64x8", "16x16"} <= set(result["seconds"])
+    assert wide <= {"64x8x16", "16x16x16"} and len(wide) == (tuning.WIDE_LANES in tuning.candidate_lanes(be))
+    assert result["lanes"] in tuning.candidate_lanes(be) and be.lanes == result["lanes"]
     assert tuning.tuned(be) and tuning.tile_for(be) == result["tile"]
     monkeypatch.setattr(be, "_tile", None)  # a new process: read back from the disk
-    assert tuning.tile_for(be) == result["tile"] and be.tune() is None
+    assert tuning.tile_for(be) == result["tile"] and tuning.lanes_for(be) == result["lanes"] and be.tune() is None
+    monkeypatch.setenv(tuning.ENV_LANES, "8")
+    assert tuning.lanes_for(be) == 8
+    monkeypatch.setenv(tuning.ENV_LANES, "12")
+    with pytest.raises(fpiwarp.ArgumentError, match="FPIWARP_OPENCL_LANES must be one of"):
+        tuning.lanes_for(be)
+    monkeypatch.delenv(tuning.ENV_LANES)
     monkeypatch.setattr(be, "_tile", None)
     monkeypatch.setenv(tuning.ENV_TILE, "32,16")
     assert tuning.tile_for(be) == (32, 16)
@@ -283,3 +316,26 @@ def test_the_tile_is_measured_once_per_device_and_kept(opencl_backend, monkeypat
     with pytest.raises(fpiwarp.ArgumentError, match="FPIWARP_OPENCL_TILE must be X,Y"):
         tuning.tile_for(be)
     monkeypatch.setattr(be, "_tile", None)
+
+
+@pytest.mark.parametrize("antialias", [False, True])
+@pytest.mark.parametrize("kind", ["fpi_strong", "tps", "regions"])
+def test_sixteen_lanes_give_the_eight_lane_output_bit_for_bit(opencl_backend, monkeypatch, kind, antialias):
+    """Every warp_image program at 16 pixels per work-item (tiled, one-row
+    Newton groups, antialiased), which tune() may choose, as at 8."""
+    from fpiwarp.backends.opencl.prepared import JobCache
+
+    be = backend()
+    if be.lanes == 1:
+        pytest.skip("the device runs one pixel per work-item")
+    image = make_image((37, 83, 3), np.uint8, 11)
+    transform = maps(83, 37)[kind]
+    got = {}
+    for lanes in (8, 16):
+        monkeypatch.setattr(be, "lanes", lanes)
+        monkeypatch.setattr(be, "_jobs", JobCache())
+        block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
+        assert f"-DFW_VN={lanes}" in be.image_program(np.uint8, 3, 1, "reflect", 90, antialias, be.block_kind(block))[1]
+        got[lanes] = fpiwarp.warp_image(image, transform, (41, 90), order=1, mode="reflect", antialias=antialias,
+                                        backend="opencl")
+    np.testing.assert_array_equal(got[16], got[8])
