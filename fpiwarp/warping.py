@@ -177,7 +177,7 @@ def warp_image(
         that antialias declare it (``capabilities.antialias``).
         The pyramid is built once per call, and reused across calls by
         one rule on every backend
-        (:class:`fpiwarp.sampling.pyramid.SourcePyramids`): the pyramids
+        (``fpiwarp.sampling.pyramid.SourcePyramids``): the pyramids
         of the last 2 numpy sources are kept with a copy of their pixels
         and serve a call only while the source's shape, dtype and pixels
         equal that copy, so an array changed in place (read-only or not)

@@ -224,7 +224,7 @@ def extended_quads(z, w, edges, kind, box):
 def on_picture(transform, width, height):
     """``transform`` continuous over the picture (0, 0)-(width, height):
     a :class:`LocalDeformation` of the default extent is rebuilt with that
-    extent (:meth:`LocalDeformation.for_picture`); any other map, and one
+    extent (:meth:`fpiwarp.LocalDeformation.for_picture`); any other map, and one
     given its own extent, is returned as it is. What ``fpiwarp warp``, the
     viewer's and the widget's editor do with the picture they warp."""
     fit = getattr(transform, "for_picture", None)
