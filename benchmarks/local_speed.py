@@ -46,7 +46,7 @@ from .common import (
     write_json,
     write_text,
 )
-from .speed import _preview_frame, local_deformation
+from .speed import local_deformation, preview_frame
 
 
 def _bound(transform, image, coarse):
@@ -120,9 +120,9 @@ def run(height, width, rounds):
         "gl FPI": _gl_warp(fpi, image),
         "gl LocalDeformation, per-pixel Newton (before)": _gl_call(_gl_warp(local, image), False),
         "gl LocalDeformation, coarse pass (after)": _gl_call(_gl_warp(local, image), True),
-        "gl preview frame FPI": _preview_frame(image, fpi),
-        "gl preview frame LocalDeformation, per-pixel Newton (before)": _gl_call(_preview_frame(image, local), False),
-        "gl preview frame LocalDeformation, coarse pass (after)": _gl_call(_preview_frame(image, local), True),
+        "gl preview frame FPI": preview_frame(image, fpi),
+        "gl preview frame LocalDeformation, per-pixel Newton (before)": _gl_call(preview_frame(image, local), False),
+        "gl preview frame LocalDeformation, coarse pass (after)": _gl_call(preview_frame(image, local), True),
     }
     times, _ = interleaved(calls, rounds)
     return bests(times), evaluations(local, height, width)

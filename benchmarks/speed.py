@@ -433,7 +433,7 @@ def _warp(image, transform, name):
     return lambda: fpiwarp.warp_image(image, transform, order=1, mode="constant", backend=name)
 
 
-def _preview_frame(image, transform):
+def preview_frame(image, transform):
     """One exact preview frame (Renderer, method "pixel") of ``transform``
     into an offscreen framebuffer, waited for; the objects live as long as
     the returned callable."""
@@ -470,9 +470,9 @@ def run_local(sizes, settings, backends, rng, log=print):
             for label, transform in maps.items():
                 impls[f"fpiwarp {name} {label}"] = ("backend", _warp(image, transform, name))
         if "gl" in backends:
-            impls["fpiwarp gl preview frame FPI"] = ("backend", _preview_frame(image, fpi))
+            impls["fpiwarp gl preview frame FPI"] = ("backend", preview_frame(image, fpi))
             impls["fpiwarp gl preview frame LocalDeformation"] = (
-                "backend", _preview_frame(image, maps["LocalDeformation"]))
+                "backend", preview_frame(image, maps["LocalDeformation"]))
         label = f"{height}x{width}"
         rows = _measure("warp_image local", label, height * width, "uint8", impls, settings, last)
         _add_ratios(rows, IMAGE_BASELINE)

@@ -56,3 +56,30 @@ def batches(draw):
 def loop(stack, transforms, backend, options):
     maps = [transforms] * len(stack) if isinstance(transforms, fpiwarp.Transform) else transforms
     return np.stack([fpiwarp.warp_image(im, t, backend=backend, **options) for im, t in zip(stack, maps)])
+
+
+def seeded(transforms, backend, options):
+    """Whether the per-image loop's warps take the coarse pass
+    (fpiwarp/block/coarse.py) where a batch solves per pixel: a map with a
+    Newton core, not antialiased, on opencl or gl (``backend`` None: the
+    default, which may be either). Those agree within a level, not bit for
+    bit."""
+    from fpiwarp.block.coarse import newton_stage  # noqa: PLC0415
+    from fpiwarp.block.describe import describe  # noqa: PLC0415
+
+    if backend not in ("opencl", "gl", None) or options.get("antialias"):
+        return False
+    maps = [transforms] if isinstance(transforms, fpiwarp.Transform) else transforms
+    return any(newton_stage(describe(np.asarray(t.inverse.params(), np.float32))) is not None for t in maps)
+
+
+def assert_equals_loop(got, expected, is_seeded):
+    """A batch against its per-image loop: bit for bit, or within a level
+    where the loop took the coarse pass (see :func:`seeded`)."""
+    if not is_seeded:
+        np.testing.assert_array_equal(got, expected)
+        return
+    from support.kernel_cases import assert_images_agree  # noqa: PLC0415
+
+    for g, e in zip(got, expected):
+        assert_images_agree(g, e, got.dtype.type)
