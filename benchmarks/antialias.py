@@ -310,7 +310,10 @@ def markdown(result, machine_md):
     lines += ["", "## Cost", "",
               f"{'x'.join(map(str, (QUICK_COST_SIZE if result['quick'] else COST_SIZE)[::-1]))} RGB uint8 source, "
               "FPI shrink into an output of the shrunk size, best of several calls, same run; wall clock and "
-              "CPU time of the process (all threads; the steadier on a loaded machine):", "",
+              "CPU time of the process (all threads; the steadier on a loaded machine). Every call warps the same "
+              "source, so the backends reuse its pyramid after the first call (the rule: "
+              "docs/guides/antialiasing.rst); `python3 -m benchmarks.pyramid_reuse` times a pyramid built per call "
+              "beside a reused one:", "",
               "| backend | shrink | without AA (ms) | with AA (ms) | ratio | CPU without (ms) | CPU with (ms) "
               "| CPU ratio |", "|---|---|---|---|---|---|---|---|"]
     for r in result["cost"]:
