@@ -64,10 +64,20 @@ def seeded(transforms, backend, options):
     Newton core, not antialiased, on opencl or gl (``backend`` None: the
     default, which may be either). Those agree within a level, not bit for
     bit."""
+    import importlib  # noqa: PLC0415
+
     from fpiwarp.block.coarse import newton_stage  # noqa: PLC0415
     from fpiwarp.block.describe import describe  # noqa: PLC0415
 
-    if backend not in ("opencl", "gl", None) or options.get("antialias"):
+    def coarse_pass_on(name):  # the backend's switch (its module needs the backend's library)
+        module = {"opencl": "fpiwarp.backends.opencl.prepared", "gl": "fpiwarp.backends.gl.coarse"}.get(name)
+        try:
+            return module is not None and importlib.import_module(module).COARSE_PASS
+        except ImportError:
+            return False
+
+    on = coarse_pass_on(backend) if backend is not None else coarse_pass_on("opencl") or coarse_pass_on("gl")
+    if not on or options.get("antialias"):
         return False
     maps = [transforms] if isinstance(transforms, fpiwarp.Transform) else transforms
     return any(newton_stage(describe(np.asarray(t.inverse.params(), np.float32))) is not None for t in maps)

@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support.batch_cases import seeded
 from support.kernel_cases import assert_images_agree, make_image, region_map, tps_map
 
 import fpiwarp
@@ -123,15 +124,6 @@ def test_tiles_only_on_cpus_without_antialiasing_or_newton(opencl_backend):
     assert opencl_tiles.global_size((64, 8), (17, 130)) == (192, 24)
 
 
-def _seeded(transform):
-    """Whether the opencl warp_image of ``transform`` takes the coarse pass
-    (fpiwarp/block/coarse.py): a map with a Newton core."""
-    from fpiwarp.backends.opencl import prepared, tiles
-
-    block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
-    return prepared.COARSE_PASS and tiles.has_newton(backend().block_kind(block))
-
-
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(case=cases())
 def test_tiles_and_the_interior_path_give_the_one_row_general_output_bit_for_bit(opencl_backend, case):
@@ -150,7 +142,7 @@ def test_tiles_and_the_interior_path_give_the_one_row_general_output_bit_for_bit
             np.testing.assert_array_equal(run_kernel(image, transform, shape, order, mode, cval, tile=tile,
                                                      lanes=16), general)
     got = fpiwarp.warp_image(image, transform, shape, order=order, mode=mode, cval=cval, backend="opencl")
-    if _seeded(transform):  # warp_image takes the coarse pass: other (nearer) positions than a per-pixel solve
+    if seeded(transform, "opencl", {}):  # the coarse pass: nearer positions than a per-pixel solve
         assert_images_agree(got, general, image.dtype.type)
     else:
         np.testing.assert_array_equal(got, general)
