@@ -234,9 +234,10 @@ def cost(quick, log=print, backends=None):
     backends run in-process) are the steadier measure on a shared machine,
     where other processes stretch the wall clock of one call but not its
     CPU time. ``backends``: names to time (default: every available one
-    that antialiases, and the :data:`COST_VARIANTS` of those; a variant's
-    rows also hold ``vs_plain_base``, its antialiased time over its
-    backend's plain time without options, where that backend ran too)."""
+    that antialiases, and the :data:`COST_VARIANTS` of those). A variant's
+    rows also hold ``vs_plain_base`` and ``vs_plain_base_cpu``: its
+    antialiased time over its backend's plain time without options, timed
+    in the same alternation."""
     h, w = QUICK_COST_SIZE if quick else COST_SIZE
     image = _cost_image(h, w)
     rows = []
@@ -255,23 +256,26 @@ def cost(quick, log=print, backends=None):
             def smooth(b=name, t=transform, sh=shape, o=options):
                 return fpiwarp.warp_image(image, t, sh, backend=b, antialias=True, backend_options=o)
 
+            def base(b=name, t=transform, sh=shape):
+                return fpiwarp.warp_image(image, t, sh, backend=b)
+
+            calls = (plain, smooth) + ((base,) if options else ())
             try:
-                # alternated, so that a change of the machine's load hits both alike
-                runs = [(_best_time(plain), _best_time(smooth)) for _ in range(2)]
+                # alternated, so that a change of the machine's load hits all alike
+                runs = [tuple(_best_time(fn) for fn in calls) for _ in range(2)]
             except Exception as exc:  # noqa: BLE001 - one backend's failure is a result, the others still run
                 rows.append({"backend": backend, "shrink": label, "error": f"{type(exc).__name__}: {exc}"[:200]})
                 log(f"antialias cost {backend} {label}: failed: {rows[-1]['error']}")
                 continue
-            (t_plain, c_plain), (t_aa, c_aa) = (np.min([r[k] for r in runs], axis=0) for k in (0, 1))
+            best = [np.min([r[k] for r in runs], axis=0) for k in range(len(calls))]
+            (t_plain, c_plain), (t_aa, c_aa) = best[:2]
             rows.append({"backend": backend, "shrink": label, "plain_s": t_plain, "antialias_s": t_aa,
                          "ratio": round(t_aa / t_plain, 2), "plain_cpu_s": c_plain, "antialias_cpu_s": c_aa,
                          "cpu_ratio": round(c_aa / c_plain, 2)})
+            if options:
+                rows[-1].update(vs_plain_base=round(t_aa / best[2][0], 2),
+                                vs_plain_base_cpu=round(c_aa / best[2][1], 2))
             log(f"antialias cost {backend} {label}: {t_plain * 1e3:.1f} ms -> {t_aa * 1e3:.1f} ms")
-    base = {(r["backend"], r["shrink"]): r["plain_s"] for r in rows if "plain_s" in r}
-    for r in rows:
-        b = COST_VARIANTS.get(r["backend"], (None,))[0]
-        if b is not None and "antialias_s" in r and (b, r["shrink"]) in base:
-            r["vs_plain_base"] = round(r["antialias_s"] / base[b, r["shrink"]], 2)
     return rows
 
 
@@ -366,10 +370,11 @@ def markdown(result, machine_md):
     for r in result["peer_cost"]:
         vs = "" if r["vs_plain"] is None else f"{r['vs_plain']:.2f}"
         lines.append(f"| {r['peer']} | {r['shrink']} | {r['s'] * 1e3:.1f} | {r['cpu_s'] * 1e3:.1f} | {vs} |")
-    versus = [f"{r['shrink']} {r['vs_plain_base']:.2f}" for r in result["cost"] if "vs_plain_base" in r]
+    versus = [f"{r['shrink']} {r['vs_plain_base']:.2f} ({r['vs_plain_base_cpu']:.2f} CPU)"
+              for r in result["cost"] if "vs_plain_base" in r]
     if versus:
         lines += ["", "The gl hardware_filter rows' antialiased time over plain gl's (software sampling, no "
-                  "options) of the same shrink: " + ", ".join(versus) + "."]
+                  "options) of the same shrink, timed alternately with them: " + ", ".join(versus) + "."]
     return "\n".join(lines + ["", machine_md]) + "\n"
 
 
@@ -391,17 +396,18 @@ def hardware_filter_markdown(result, machine_md):
         cells = [f"{v:.2f}" if isinstance(v, float) else "" for v in
                  (c.psnr.get(HW_METHOD), ref.get("fpiwarp order 1 antialias"), ref.get("fpiwarp order 1"))]
         lines.append(f"| {c.picture} | {c.kind} | {c.shrink} | " + " | ".join(cells) + " |")
-    lines += ["", "Cost, as above; `vs plain gl`: the antialiased time over plain gl's (software sampling) of "
-              "the same run:", "",
-              "| backend | shrink | without AA (ms) | with AA (ms) | ratio | CPU ratio | vs plain gl |",
-              "|---|---|---|---|---|---|---|"]
+    lines += ["", "Cost, as above; `vs plain gl`: the antialiased time over plain gl's (software sampling, no "
+              "options), timed alternately with it:", "",
+              "| backend | shrink | without AA (ms) | with AA (ms) | ratio | CPU ratio | vs plain gl "
+              "| CPU vs plain gl |",
+              "|---|---|---|---|---|---|---|---|"]
     for r in result["cost"]:
         if "error" in r:
-            lines.append(f"| {r['backend']} | {r['shrink']} | failed: {r['error']} | | | | |")
+            lines.append(f"| {r['backend']} | {r['shrink']} | failed: {r['error']} | | | | | |")
             continue
-        vs = f"{r['vs_plain_base']:.2f}" if "vs_plain_base" in r else ""
+        vs = [f"{r[k]:.2f}" if k in r else "" for k in ("vs_plain_base", "vs_plain_base_cpu")]
         lines.append(f"| {r['backend']} | {r['shrink']} | {r['plain_s'] * 1e3:.1f} | {r['antialias_s'] * 1e3:.1f} "
-                     f"| {r['ratio']:.2f} | {r['cpu_ratio']:.2f} | {vs} |")
+                     f"| {r['ratio']:.2f} | {r['cpu_ratio']:.2f} | {vs[0]} | {vs[1]} |")
     return "\n".join(lines + ["", machine_md]) + "\n"
 
 
