@@ -434,8 +434,10 @@ def main(argv=None):
     md_path, json_path = common.RESULTS / "antialias.md", common.RESULTS / "antialias.json"
     data = json.loads(json_path.read_text(encoding="utf-8"))
     main_psnr = {(c["picture"], c["kind"], c["shrink"]): c for c in data.get("psnr_db", [])}
-    section = hardware_filter_markdown({"cases": cases, "cost": rows, "main_psnr": main_psnr},
-                                       common.machine_markdown(info))
+    machine_md = common.machine_markdown(info)
+    if "load_average_at_end" in info:
+        machine_md += f"\n\nLoad average at the end: {info['load_average_at_end'][0]}."
+    section = hardware_filter_markdown({"cases": cases, "cost": rows, "main_psnr": main_psnr}, machine_md)
     print(section)
     if args.quick:
         return
