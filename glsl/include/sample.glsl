@@ -99,9 +99,10 @@ vec4 fpw_cubic_weights(float t) {
 // ex, ey (source pixels, converted to texture coordinates): the texture
 // unit's trilinear (and anisotropic) minification, see antialias.glsl.
 // fpw_sample is the plain option's read; with mipmaps it names a level of
-// detail below 0 (textureLod: magnified, level 0 through the plain
-// option's own filter, bit for bit; zero gradients would not do: llvmpipe's
-// anisotropic path reads a blurred level from them).
+// detail below 0 (textureLod: magnified by the spec's rule, level 0
+// through the plain option's own filter, bit for bit; zero gradients would
+// leave the level to log2(0)). A driver whose anisotropic filter breaks
+// this gets none (GLWarper.checked_anisotropy: llvmpipe's blurs it).
 vec4 fpw_hw_sample(vec2 pos, vec2 ex, vec2 ey) {
     if (!fpw_in_range(pos)) return fpw_cval;
     pos = clamp(pos, vec2(-FPW_COORD_LIMIT), vec2(FPW_COORD_LIMIT));

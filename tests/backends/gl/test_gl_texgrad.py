@@ -56,14 +56,16 @@ def test_identity_and_magnification_are_the_plain_hardware_filter_bit_for_bit(gl
             assert np.array_equal(_warp(img, transform, shape, **kw), plain)
 
 
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
 @pytest.mark.parametrize("order", [0, 1])
 @pytest.mark.parametrize("mode", ["constant", "edge", "wrap"])
-def test_constant_image_stays_constant_within_a_level(gl_backend, order, mode):
-    color = [17, 140, 250]
-    img = np.full((120, 160, 3), color, np.uint8)
+def test_constant_image_stays_constant_within_a_level(gl_backend, dtype, order, mode):
+    scale = {np.uint8: 1.0, np.uint16: 257.0, np.float32: 1 / 255}[dtype]  # one level of each dtype
+    color = np.array([17, 140, 250]) * scale
+    img = np.full((120, 160, 3), color, dtype)
     for transform in SHRINKS.values():
         out = _warp(img, transform, (48, 64), order=order, mode=mode, cval=color)
-        assert np.abs(out.astype(int) - color).max() <= 1
+        assert np.abs(out.astype(np.float64) - img[0, 0]).max() <= scale
 
 
 def test_shrunk_sinusoid_above_the_output_nyquist_is_filtered_out(gl_backend):
