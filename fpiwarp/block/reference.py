@@ -131,9 +131,10 @@ def _pre_core_post(rows, kind, z, dtype, seed=None):
     return complex_at(rows[ROW_POST], 2) + complex_at(rows[ROW_SCALE], 2) * p / (1 - complex_at(rows[ROW_POST], 0) * p)
 
 
-def seed_correction(target, rows, dtype):
-    """The seed table's bilinear correction at complex targets (layout:
-    ROW_SEED): added to the R-linear seed; 0 for all-zero table rows."""
+def _seed_cells(target, rows, dtype):
+    """The seed table's cell of each complex target (clamped node
+    coordinates, NaN: 0): (i, tx, j, ty), the cell's corner indices and the
+    fractions, and the table's corrections as a flat complex array."""
     lo_re, lo_im, gx, gy = (dtype(v) for v in rows[ROW_SEED])
     last = dtype(SEED_N - 1)
 
@@ -148,7 +149,13 @@ def seed_correction(target, rows, dtype):
     j, ty = axis(target.imag, lo_im, gy)
     grid = rows[ROW_SEED_GRID : ROW_SEED_GRID + SEED_N * SEED_N // 2]
     nodes = np.stack([grid[:, 0] + 1j * grid[:, 1], grid[:, 2] + 1j * grid[:, 3]], axis=1).reshape(-1)
-    nodes = nodes.astype(target.dtype)
+    return i, tx, j, ty, nodes.astype(target.dtype)
+
+
+def seed_correction(target, rows, dtype):
+    """The seed table's bilinear correction at complex targets (layout:
+    ROW_SEED): added to the R-linear seed; 0 for all-zero table rows."""
+    i, tx, j, ty, nodes = _seed_cells(target, rows, dtype)
 
     def at(jj, ii):
         return nodes[jj * SEED_N + ii]
@@ -158,13 +165,36 @@ def seed_correction(target, rows, dtype):
     return bottom + ty * (top - bottom)
 
 
+#: The corners of a target's seed-table cell whose preimages the Newton
+#: restarts from, in order: (di, dj) added to the cell's (i, j).
+RESTART_CORNERS = ((0, 0), (1, 0), (0, 1), (1, 1))
+
+
+def seed_corner(target, rows, dtype, corner):
+    """The preimage the seed table holds at a corner (:data:`RESTART_CORNERS`
+    index) of each target's cell: the R-linear inverse of the node, node_re
+    = lo_re + i / gx (and so for im), plus the node's correction."""
+    i, _, j, _, nodes = _seed_cells(target, rows, dtype)
+    di, dj = RESTART_CORNERS[corner]
+    i, j = i + di, j + dj
+    lo_re, lo_im, gx, gy = (dtype(v) for v in rows[ROW_SEED])
+    node = ((lo_re + i.astype(dtype) / gx).astype(dtype) + 1j * (lo_im + j.astype(dtype) / gy).astype(dtype))
+    node = node.astype(target.dtype)
+    mu1, mu2, mu3 = complex_at(rows[ROW_MU12], 0), complex_at(rows[ROW_MU12], 2), complex_at(rows[ROW_MU3], 0)
+    return mu1 * node + mu2 * np.conj(node) + mu3 + nodes[j * SEED_N + i]
+
+
 def newton(target, rows, n, iters, tol, dtype, paired=False, seed=None):
     """Solve TPS(x) = target by Newton from the inverse of the R-linear
     part plus the seed table's correction; where that does not end within
-    ``tol`` after ``iters`` steps and the correction there is not 0, again
-    from the R-linear inverse alone (the restart: a point the R-linear
-    seed solves is never lost to the table); NaN where neither does.
-    ``paired``: the paired TPS core.
+    ``tol`` after ``iters`` steps, the solve restarts, where each fails:
+    from the R-linear inverse alone where the correction is not 0 (so a
+    point the R-linear seed solves is never lost to the table), then, where
+    the stage has a table (its box's steps not 0; a dropped table keeps its
+    box), from the preimages the table holds at the corners of the target's
+    cell (:func:`seed_corner`, in RESTART_CORNERS order); NaN where none ends.
+    At most 6 solves of ``iters`` steps per point. ``paired``: the paired
+    TPS core.
 
     ``seed``: a warp's coarse-pass seed (x0, a, b) per target
     (:mod:`fpiwarp.block.coarse`): where x0 is finite and TPS(x0) (its
@@ -183,9 +213,13 @@ def newton(target, rows, n, iters, tol, dtype, paired=False, seed=None):
     start = mu1 * target + mu2 * np.conj(target) + mu3
     correction = seed_correction(target, rows, dtype)
     out = _newton_from(start + correction, target, rows, n, iters, tol, dtype, paired)
-    again = np.isnan(out) & (correction != 0)
-    if again.any():  # per point, so the restarted points alone give the same numbers
-        out[again] = _newton_from(start[again], target[again], rows, n, iters, tol, dtype, paired)
+    table = bool(rows[ROW_SEED, 2] != 0 and rows[ROW_SEED, 3] != 0)  # a stage without one: zero rows
+    restarts = [(correction != 0, lambda sel: start[sel])]  # elsewhere the same solve again
+    restarts += [(table, lambda sel, c=c: seed_corner(target[sel], rows, dtype, c)) for c in range(len(RESTART_CORNERS))]
+    for where, seed_of in restarts:  # per point, so the restarted points alone give the same numbers
+        again = np.isnan(out) & where
+        if again.any():
+            out[again] = _newton_from(seed_of(again), target[again], rows, n, iters, tol, dtype, paired)
     return out
 
 

@@ -120,6 +120,20 @@ vec2 fpw_seed_correction(vec2 t, int base) {
     return bottom + (top - bottom) * ty;
 }
 
+// reference.seed_corner: the preimage the seed table holds at corner c
+// (0..3: reference.RESTART_CORNERS, (c & 1, c >> 1) added to the cell) of
+// t's cell, the R-linear inverse of the node plus its correction.
+vec2 fpw_seed_corner(vec2 t, int base, vec4 mu12, vec2 mu3, int c) {
+    vec4 box = fpw_rows[base + FPW_ROW_SEED];
+    vec2 f = (t - box.xy) * box.zw;
+    f.x = f.x > 0.0 ? min(f.x, float(FPW_SEED_N - 1)) : 0.0;
+    f.y = f.y > 0.0 ? min(f.y, float(FPW_SEED_N - 1)) : 0.0;
+    int i = min(int(f.x), FPW_SEED_N - 2) + c % 2;
+    int j = min(int(f.y), FPW_SEED_N - 2) + c / 2;
+    vec2 node = vec2(box.x + float(i) / box.z, box.y + float(j) / box.w);
+    return fpw_cmul(mu12.xy, node) + fpw_cmul(mu12.zw, fpw_conj(node)) + mu3 + fpw_seed_node(base, j * FPW_SEED_N + i);
+}
+
 // ---- a warp's coarse pass (fpiwarp/block/coarse.py) ---------------------
 // FPW_COARSE (a per-pixel warp or preview of a map with a Newton core):
 // the coarse pass's node records are in two RGBA32F textures, node (i, j)
@@ -187,9 +201,9 @@ vec2 fpw_newton_seeded(vec2 target, int base, int n, bool paired, int iters, flo
     }
 #endif
     vec2 start = vec2(0.0), correction = vec2(0.0);
+    vec4 mu12 = fpw_rows[base + FPW_ROW_MU12];
+    vec2 mu3 = fpw_rows[base + FPW_ROW_MU3].xy;
     if (!done) {
-        vec4 mu12 = fpw_rows[base + FPW_ROW_MU12];
-        vec2 mu3 = fpw_rows[base + FPW_ROW_MU3].xy;
         start = fpw_cmul(mu12.xy, target) + fpw_cmul(mu12.zw, fpw_conj(target)) + mu3;
         correction = fpw_seed_correction(target, base);
         x = start + correction;
@@ -200,13 +214,18 @@ vec2 fpw_newton_seeded(vec2 target, int base, int n, bool paired, int iters, flo
     // even where no pixel of its SIMD group takes it; on the benchmark's
     // frame this shape of the seeded solve measured 5-10 % faster than an
     // early return before the loop and its for-else check.)
-    // The solve from the table's seed, then, where it fails and the
-    // table's correction is not 0, from the R-linear seed alone (the
-    // reference's restart).
-    int passes = correction != vec2(0.0) ? 2 : 1;
+    // The solve from the table's seed, then, where it fails (the
+    // reference's restarts): from the R-linear seed alone where the table's
+    // correction is not 0, from the table's preimages at the corners of
+    // the target's cell where the stage has a table.
+    bool rlinear = correction != vec2(0.0);
+    vec4 box = fpw_rows[base + FPW_ROW_SEED];
+    int passes = (box.z != 0.0 && box.w != 0.0) ? 6 : (rlinear ? 2 : 1);
     for (int pass = 0; pass < passes && !done; ++pass) {
+        bool skip = pass == 1 && !rlinear;  // the same solve again
         if (pass == 1) x = start;
-        for (int it = 0; it <= iters && !done; ++it) {
+        else if (pass > 1) x = fpw_seed_corner(target, base, mu12, mu3, pass - 2);
+        for (int it = 0; it <= iters && !done && !skip; ++it) {
             fpw_tps(x, base, n, paired, val, dz, dzb);
             vec2 res = val - target;
             done = length(res) <= tol;

@@ -224,6 +224,21 @@ def seed_correction(blk: wp.array(dtype=wp.vec4), s0: int, t: wp.vec2):
 
 
 @wp.func
+def seed_corner(blk: wp.array(dtype=wp.vec4), s0: int, t: wp.vec2, mu1: wp.vec2, mu2: wp.vec2, mu3: wp.vec2,
+                c: int):
+    """The preimage the seed table holds at corner c (0..3:
+    fpiwarp.block.reference.RESTART_CORNERS) of t's cell: the R-linear
+    inverse of the node plus its correction (reference.seed_corner)."""
+    box = blk[s0 + ROW_SEED]
+    i, tx = seed_axis(t[0], box[0], box[2])
+    j, ty = seed_axis(t[1], box[1], box[3])
+    i = i + c % 2
+    j = j + c // 2
+    node = wp.vec2(box[0] + float(i) / box[2], box[1] + float(j) / box[3])
+    return cmul(mu1, node) + cmul(mu2, conj(node)) + mu3 + seed_node(blk, s0, j * SEED_N + i)
+
+
+@wp.func
 def tps_newton_from(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2, paired: bool,
                     x: wp.vec2):
     """Newton's iterates for TPS(x) = target from ``x``: x once within
@@ -252,9 +267,11 @@ def tps_newton_from(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, t
 @wp.func
 def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2, paired: bool):
     """Solve TPS(x) = target by Newton from the inverse of the R-linear part
-    plus the seed table's correction, and where that fails and the
-    correction is not 0, from the R-linear inverse alone (the reference's
-    restart); NaN when neither ends within newton_tol after ``iters`` steps."""
+    plus the seed table's correction, restarting where that fails as the
+    reference does (from the R-linear inverse alone where the correction is
+    not 0, then from the table's preimages at the corners of the target's
+    cell where the stage has a table); NaN when none ends within
+    newton_tol after ``iters`` steps."""
     mu1 = lo(blk[s0 + ROW_MU12])
     mu2 = hi(blk[s0 + ROW_MU12])
     mu3 = lo(blk[s0 + ROW_MU3])
@@ -263,6 +280,11 @@ def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target
     x = tps_newton_from(blk, s0, n, iters, target, paired, start + correction)
     if wp.isnan(x[0]) and (correction[0] != 0.0 or correction[1] != 0.0):
         x = tps_newton_from(blk, s0, n, iters, target, paired, start)
+    box = blk[s0 + ROW_SEED]
+    if box[2] != 0.0 and box[3] != 0.0:
+        for c in range(4):
+            if wp.isnan(x[0]):
+                x = tps_newton_from(blk, s0, n, iters, target, paired, seed_corner(blk, s0, target, mu1, mu2, mu3, c))
     return x
 
 

@@ -272,6 +272,20 @@ FW_FN fw_c fw_seed_correction(fw_c t, fw_rows_t rows)
     return fw_add(bottom, fw_scale(fw_sub(top, bottom), ty));
 }
 
+/* the preimage the seed table holds at corner c (0..3: reference.
+ * RESTART_CORNERS, (c & 1, c >> 1) added to the cell) of t's cell
+ * (reference.seed_corner): the R-linear inverse of the node plus its
+ * correction */
+FW_FN fw_c fw_seed_corner(fw_c t, fw_rows_t rows, fw_c mu1, fw_c mu2, fw_c mu3, int c)
+{
+    float tx, ty, lo_re = rows[4 * FW_ROW_SEED], lo_im = rows[4 * FW_ROW_SEED + 1];
+    float gx = rows[4 * FW_ROW_SEED + 2], gy = rows[4 * FW_ROW_SEED + 3];
+    int i = fw_seed_axis(t.re, lo_re, gx, &tx) + (c & 1);
+    int j = fw_seed_axis(t.im, lo_im, gy, &ty) + (c >> 1);
+    fw_c node = fw_cx(lo_re + (float)i / gx, lo_im + (float)j / gy);
+    return fw_add(fw_rlinear(node, mu1, mu2, mu3), fw_seed_node(rows, j * FW_SEED_N + i));
+}
+
 /* A warp's coarse-pass seed of one pixel (fpiwarp/block/coarse.py): x0
  * and the inverse Jacobian's Wirtinger parts a, b, interpolated from the
  * nodes' records; x0 NaN: no seed. */
@@ -297,14 +311,19 @@ FW_FN fw_c fw_newton_seeded(fw_c target, fw_rows_t rows, int n, bool paired, int
         fw_c step = fw_add(fw_mul(seed.a, res), fw_mul(seed.b, fw_conj(res)));
         x = fw_select(done, fw_sub(seed.x, step), x);
     }
-    /* the solve from the table's seed, then, where it fails and the
-     * table's correction is not 0, from the R-linear seed alone (the
-     * reference's restart) */
-    int passes = (correction.re != 0.0f || correction.im != 0.0f) ? 2 : 1;
+    /* the solve from the table's seed, then, where it fails (the
+     * reference's restarts): from the R-linear seed alone where the table's
+     * correction is not 0, from the table's preimages at the corners of the
+     * target's cell where the stage has a table */
+    bool rlinear = correction.re != 0.0f || correction.im != 0.0f;
+    int passes = (rows[4 * FW_ROW_SEED + 2] != 0.0f && rows[4 * FW_ROW_SEED + 3] != 0.0f) ? 6 : (rlinear ? 2 : 1);
     for (int pass = 0; pass < passes && !done; ++pass) {
+        bool skip = pass == 1 && !rlinear; /* the same solve again */
         if (pass == 1)
             x = start;
-        for (int k = 0; k < iters && !done; ++k) {
+        else if (pass > 1)
+            x = fw_seed_corner(target, rows, mu1, mu2, mu3, pass - 2);
+        for (int k = 0; k < iters && !done && !skip; ++k) {
             /* the seed is rarely within tol: its pass takes the derivatives
              * at once; a later pass checks the value first and takes them
              * only for a point that goes on (the same iterates, fewer terms) */
@@ -316,7 +335,7 @@ FW_FN fw_c fw_newton_seeded(fw_c target, fw_rows_t rows, int n, bool paired, int
             fw_c step = fw_scale(fw_sub(fw_mul(fw_conj(dz), res), fw_mul(dzb, fw_conj(res))), 1.0f / det);
             x = fw_select(done, x, fw_sub(x, step));
         }
-        if (!done) {
+        if (!done && !skip) {
             fw_c res = fw_sub(fw_tps_d(x, rows, n, paired, false, &dz, &dzb), target);
             done = sqrt(fw_abs2(res)) <= tol;
         }

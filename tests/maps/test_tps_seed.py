@@ -143,6 +143,26 @@ def test_the_table_never_loses_a_point_the_rlinear_seed_solves(case):
     assert right.mean() >= min(0.9, right_plain.mean())
 
 
+def test_the_restarts_solve_where_both_seeds_fail(any_backend):
+    """BOTH_SEEDS_FAIL: interior points that neither the table's seed nor
+    the R-linear one solves in float32 (the solve without a table) are
+    solved from the preimages the table holds at their cell's corners: by
+    the float32 reference (which now answers every interior point) and by
+    every backend, to the points themselves."""
+    src = BOTH_SEEDS_FAIL[0]
+    f = ConstrainedFPI(*BOTH_SEEDS_FAIL)
+    p = interior(src, 15)
+    p = p[inside_quad(cplx(src), cplx(p))]
+    q = f(p)
+    scale = float(np.ptp(src, axis=0).max()) + np.abs(src).max()
+    stages = f.inverse.stages()
+    left = ~np.isfinite(_device([dataclasses.replace(st, seed=None) for st in stages], q)).all(-1)
+    assert left.sum() >= 3
+    device = _device(stages, q)
+    assert np.isfinite(device).all() and np.all(_near(device[left], p[left], scale))
+    assert np.all(_near(fpiwarp.map_points(f.inverse, q[left], backend=any_backend), p[left], scale))
+
+
 def test_the_table_is_dropped_where_its_interpolation_is_no_seed():
     f = ConstrainedFPI(*BOTH_SEEDS_FAIL)
     assert not np.any(f.inverse.stages()[0].seed.corrections)
