@@ -215,7 +215,8 @@ def newton(target, rows, n, iters, tol, dtype, paired=False, seed=None):
     out = _newton_from(start + correction, target, rows, n, iters, tol, dtype, paired)
     table = bool(rows[ROW_SEED, 2] != 0 and rows[ROW_SEED, 3] != 0)  # a stage without one: zero rows
     restarts = [(correction != 0, lambda sel: start[sel])]  # elsewhere the same solve again
-    restarts += [(table, lambda sel, c=c: seed_corner(target[sel], rows, dtype, c)) for c in range(len(RESTART_CORNERS))]
+    restarts += [(table, lambda sel, c=c: seed_corner(target[sel], rows, dtype, c))
+                 for c in range(len(RESTART_CORNERS))]
     for where, seed_of in restarts:  # per point, so the restarted points alone give the same numbers
         again = np.isnan(out) & where
         if again.any():
