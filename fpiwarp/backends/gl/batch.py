@@ -28,7 +28,7 @@ Maps with a Newton core take the coarse pass as their single warps do
 (:mod:`.coarse`): before each draw (and column tile) one instanced draw
 solves the nodes of all its images, image k's from block k, and the
 warp's instance k seeds its pixels from them; the maps are grouped by
-whether they have a Newton core as well (so without specializing too).
+whether they have a Newton core (without specializing too).
 """
 
 import moderngl
@@ -63,16 +63,17 @@ def supports_batches(ctx):
             and (info.get("GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS") or 0) > 0)
 
 
-def kind_groups(stack, n, specialize):
+def kind_groups(stack, n, specialize, by_newton=False):
     """[(stages, is_short, has a Newton core, indices of the images,
     whether each has its own block)]: the images grouped by the kind of
-    their map (when not specializing: by whether it has a Newton core
-    alone; one group for one map shared by all ``n`` images).
+    their map (when not specializing: one group, or by whether the map has
+    a Newton core where ``by_newton``, else that is None; one group for
+    one map shared by all ``n`` images).
     ``stack``: a :class:`~fpiwarp.block.many.BlockStack`, each distinct kind
     described once."""
-    def key(kind):  # (each stage's core and region count, short map) when specializing
+    def key(kind):  # (each stage's core and region count, short map, Newton) when specializing
         return (tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None,
-                specialize and kind.is_short, newton_stage(kind) is not None)
+                specialize and kind.is_short, newton_stage(kind) is not None if specialize or by_newton else None)
 
     if len(stack) == 1:
         return [(*key(describe(stack.array[0, : stack.rows[0]])), np.arange(n), False)]
@@ -126,7 +127,7 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
     if warper.targets.owns(caller):  # never leave a cached target bound (see GLWarper)
         caller = warper.targets.dummy
     try:
-        for stages, short, newton, idx, own in kind_groups(stack_of_blocks, n, warper.specialize):
+        for stages, short, newton, idx, own in kind_groups(stack_of_blocks, n, warper.specialize, by_newton=True):
             warper.short_map, warper.newton_map = short, newton  # as set_map sets them for one of the maps
             key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=True)
             prog = batch_program(warper, key)

@@ -7,6 +7,16 @@ parameter blocks and image ``which[z]`` of a stacked source and output
 code, so a batch equals the loop of :meth:`Backend.warp_image` bit for
 bit.
 
+Newton maps
+-----------
+A map with a Newton core takes the coarse pass as its single warp does
+(:class:`.prepared.ClJob`, fpiwarp/block/coarse.py): each launch of such
+maps is preceded by one ``coarse_pass`` launch over the nodes of all its
+images (launch dimension 2 again), into one records buffer kept across
+batches, item z's records from node z nx ny on, which warp_image's item z
+reads. The backend's queue is in order: the records are written before
+the warp reads them and rewritten only after.
+
 Kinds of map
 ------------
 A program is specialised for one kind of map (:func:`kind_options`), so

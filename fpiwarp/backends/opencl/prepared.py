@@ -35,8 +35,9 @@ IMAGE_SLACK = 4
 #: a millisecond of driver set-up per call on PoCL, more than the copy.
 ZERO_COPY_MIN_BYTES = 1 << 20
 #: A Newton map's warp runs the coarse pass (fpiwarp/block/coarse.py) first;
-#: False: each pixel solves alone (read when a job is made: benchmarks
-#: compare the two, benchmarks/local_speed.py).
+#: False: each pixel solves alone (read when a job is made, a batch
+#: launched or a device warp's map set: benchmarks compare the two,
+#: benchmarks/local_speed.py).
 COARSE_PASS = True
 #: The build option of a warp taking the coarse pass (warp_image then
 #: reads the records coarse_pass writes: kernels/opencl/fpiwarp.cl).
