@@ -526,7 +526,7 @@ class DeviceWarp:
         if coarse:
             size, (nx, ny) = records_bytes((oh, ow))
             records = be._buffer("coarse", size)
-            self._coarse = be._cl.Kernel(kern.program, "coarse_pass")
+            self._coarse = be.kernel("coarse_pass", options)  # of warp_image's program
             self._coarse.set_args(block, records, np.int32(nx), np.int32(ny))
             self._coarse_global = (nodes_global(self.local[0], nx, ny),)
             extra = (records, np.int32(nx), np.int32(ny))

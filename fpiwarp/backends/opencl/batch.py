@@ -193,21 +193,21 @@ class BatchLaunch:
             extra = self._pyramid_args(queue, src, options, a, b, wait_for) if self.antialias else ()
             self.keep.append((_small_buffer(cl, be.context, blocks), _small_buffer(cl, be.context, which)))
             if coarse:
-                extra = self._coarse_pass(queue, kern.program, *self.keep[-1], rows, len(which), local[0])
+                node = be.kernel("coarse_pass", (*options, "-DFW_BATCH=1"))  # of warp_image's program
+                extra = self._coarse_pass(queue, node, *self.keep[-1], rows, len(which), local[0])
             kern.set_args(self.keep[-1][0], src, *sizes, *extra, self.keep[-1][1], np.int32(rows))
             events.append(cl.enqueue_nd_range_kernel(queue, kern, (*global_size(local, (self.oh, self.ow)), len(which)),
                                                      (*local, 1), wait_for=wait_for))
         return events
 
-    def _coarse_pass(self, queue, program, blocks, which, rows, count, local_x):
-        """Enqueue the coarse pass of a launch's ``count`` maps (their
+    def _coarse_pass(self, queue, node, blocks, which, rows, count, local_x):
+        """Enqueue the coarse pass (kernel ``node``) of a launch's ``count`` maps (their
         ``blocks`` buffer, ``rows`` rows each) into one kept records buffer,
         item z's records from node z nx ny on; warp_image's records
         arguments. The queue is in order: the records are written before
         the launch's warp reads them, and after the last one read them."""
         size, (nx, ny) = records_bytes((self.oh, self.ow), count)
         records = kept_buffer(self.backend, "coarse", size, self.cl.mem_flags.READ_WRITE)
-        node = self.cl.Kernel(program, "coarse_pass")
         node.set_args(blocks, records, np.int32(nx), np.int32(ny), which, np.int32(rows))
         self.cl.enqueue_nd_range_kernel(queue, node, (nodes_global(local_x, nx, ny), 1, count), (local_x, 1, 1))
         return records, np.int32(nx), np.int32(ny)
