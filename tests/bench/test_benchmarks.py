@@ -320,3 +320,17 @@ def test_quick_run_batch_section_is_well_formed(quick_run):
     assert all(r["loop_s"] > 0 and r["batch_s"] > 0 and r["speedup"] > 0 for r in data["maps"])
     assert all(r["loop_fps"] > 0 and r["batch_fps"] > 0 for r in data["frames"])
     assert "batch == loop" in (quick_run / "batch.md").read_text()
+
+
+def test_local_speed_batch_section_replaces_only_itself(tmp_path):
+    """local_speed.py --batch rewrites its own section of local_speed.md, the rest kept."""
+    pytest.importorskip("moderngl")
+    from benchmarks import local_speed
+
+    path = tmp_path / "local_speed.md"
+    path.write_text("# The coarse pass\n\nrows\n", encoding="utf-8")
+    a, b = f"{local_speed.BATCH_TITLE}, 2", f"{local_speed.BATCH_TITLE}, 3"
+    local_speed.write_batch_section(path, f"{a}\n\nfirst\n")
+    local_speed.write_batch_section(path, f"{b}\n\nother\n")
+    local_speed.write_batch_section(path, f"{a}\n\nsecond\n")
+    assert path.read_text(encoding="utf-8") == f"# The coarse pass\n\nrows\n\n{b}\n\nother\n\n{a}\n\nsecond\n"
