@@ -17,8 +17,10 @@ anisotropic FPIs (one direction shrunk much more than the other).
 Methods: fpiwarp order 1 without and with antialiasing (the numpy
 reference: every backend agrees with it; since issue 29 the footprint
 average reads a source pyramid, see fpiwarp.sampling.pyramid), ``cv2.remap`` (bilinear) at the same positions,
-``skimage.transform.warp`` (order 1) and, for uniform scales, the two
-resizers.
+``skimage.transform.warp`` (order 1), where the gl backend runs its
+hardware-filtered antialiasing (:data:`HW_METHOD`: ``hardware_filter``
+with ``antialias``, the texture unit's trilinear filtering of the source's
+mipmaps by textureGrad) and, for uniform scales, the two resizers.
 
 Cost. 1920 × 1080 RGB uint8 pictures warped by the FPI of each shrink
 factor into an output of the shrunk size, on each backend that
@@ -31,9 +33,21 @@ else again. A backend that fails a call is reported with its error, the
 others still run. Beside them, for uniform shrinks, the peers'
 antialiased resizers on the same picture: ``cv2.resize(INTER_AREA)`` and
 ``skimage.transform.rescale(anti_aliasing=True)`` (order 1), with their
-time relative to the fastest plain fpiwarp warp of that shrink.
+time relative to the fastest plain fpiwarp warp of that shrink. The row
+"gl hardware_filter" (:data:`COST_VARIANTS`) times gl's
+``hardware_filter`` with and without antialiasing; its ``vs plain gl``
+is its antialiased time over plain gl's (software sampling) of that run.
+
+``python3 -m benchmarks.antialias --hardware-filter`` reruns only those
+(the gl hardware-filtered column and the gl cost rows) and writes them as
+a separate section of results/antialias.md (and a key of antialias.json),
+marked as another run, with that run's machine line; a full run
+(``python3 -m benchmarks --only antialias``) puts them in the tables.
 """
 
+import argparse
+import json
+import os
 import time
 from dataclasses import dataclass
 
@@ -52,6 +66,12 @@ COST_SIZE = (1080, 1920)
 #: FPI shrinks whose crops the figure shows: level 0 of the pyramid, and far up it
 CROP_SHRINKS = ("1/3", "1/8")
 QUICK_COST_SIZE = (120, 160)
+#: The quality column of gl's hardware-filtered antialiasing.
+HW_METHOD = "gl hardware_filter antialias"
+#: Cost rows that run a backend with options: name -> (backend, backend_options).
+COST_VARIANTS = {"gl hardware_filter": ("gl", {"hardware_filter": True})}
+#: The title of the separate section (:func:`main`) in results/antialias.md.
+HW_SECTION = "## GL hardware filter (a separate run)"
 
 
 def zone_plate(n):
@@ -128,7 +148,8 @@ def psnr(got, ref, mask):
 
 
 def methods(image, transform, shape, uniform):
-    """{method: callable() -> output float image}."""
+    """{method: callable() -> output float image}; :data:`HW_METHOD` where
+    the gl backend runs."""
     import cv2  # noqa: PLC0415 - benchmark peers
     from skimage import transform as sktf  # noqa: PLC0415
 
@@ -149,6 +170,9 @@ def methods(image, transform, shape, uniform):
                                               borderMode=cv2.BORDER_REPLICATE).reshape(shape + (chan,)),
         "skimage warp order 1": sk_warp,
     }
+    if "gl" in fpiwarp.available_backends():
+        out[HW_METHOD] = lambda: fpiwarp.warp_image(image, transform, shape, mode="edge", antialias=True,
+                                                    backend="gl", backend_options={"hardware_filter": True})
     if uniform:
         out["cv2.resize INTER_AREA"] = lambda: cv2.resize(image, shape[::-1], interpolation=cv2.INTER_AREA).reshape(
             shape + (chan,))
@@ -165,7 +189,8 @@ class Case:
     psnr: dict
 
 
-def quality(quick, log=print):
+def quality(quick, log=print, only=None):
+    """Every case's PSNR per method (``only``: those methods only)."""
     cases, crops = [], {}
     for name, image, formula in pictures(quick):
         h, w = image.shape[:2]
@@ -178,6 +203,8 @@ def quality(quick, log=print):
             mask = interior(image, transform, shape)
             scores = {}
             for method, run in methods(image, transform, shape, kind == "uniform").items():
+                if only is not None and method not in only:
+                    continue
                 got = run()
                 scores[method] = round(psnr(got, ref, mask), 2)
                 if kind == "fpi" and label in CROP_SHRINKS:
@@ -207,34 +234,47 @@ def cost(quick, log=print, backends=None):
     backends run in-process) are the steadier measure on a shared machine,
     where other processes stretch the wall clock of one call but not its
     CPU time. ``backends``: names to time (default: every available one
-    that antialiases)."""
+    that antialiases, and the :data:`COST_VARIANTS` of those). A variant's
+    rows also hold ``vs_plain_base`` and ``vs_plain_base_cpu``: its
+    antialiased time over its backend's plain time without options, timed
+    in the same alternation."""
     h, w = QUICK_COST_SIZE if quick else COST_SIZE
     image = _cost_image(h, w)
     rows = []
     if backends is None:
         backends = [b for b in fpiwarp.available_backends() if fpiwarp.backends.backend_capabilities(b).antialias]
+        backends += [v for v, (b, _) in COST_VARIANTS.items() if b in backends]
     for backend in backends:
+        name, options = COST_VARIANTS.get(backend, (backend, None))
         for sx, sy in COST_SHRINKS:
             transform, shape = fpi_shrink(h, w, sx, sy)
             label = _shrink_label(sx, sy)
 
-            def plain(b=backend, t=transform, sh=shape):
+            def plain(b=name, t=transform, sh=shape, o=options):
+                return fpiwarp.warp_image(image, t, sh, backend=b, backend_options=o)
+
+            def smooth(b=name, t=transform, sh=shape, o=options):
+                return fpiwarp.warp_image(image, t, sh, backend=b, antialias=True, backend_options=o)
+
+            def base(b=name, t=transform, sh=shape):
                 return fpiwarp.warp_image(image, t, sh, backend=b)
 
-            def smooth(b=backend, t=transform, sh=shape):
-                return fpiwarp.warp_image(image, t, sh, backend=b, antialias=True)
-
+            calls = (plain, smooth) + ((base,) if options else ())
             try:
-                # alternated, so that a change of the machine's load hits both alike
-                runs = [(_best_time(plain), _best_time(smooth)) for _ in range(2)]
+                # alternated, so that a change of the machine's load hits all alike
+                runs = [tuple(_best_time(fn) for fn in calls) for _ in range(2)]
             except Exception as exc:  # noqa: BLE001 - one backend's failure is a result, the others still run
                 rows.append({"backend": backend, "shrink": label, "error": f"{type(exc).__name__}: {exc}"[:200]})
                 log(f"antialias cost {backend} {label}: failed: {rows[-1]['error']}")
                 continue
-            (t_plain, c_plain), (t_aa, c_aa) = (np.min([r[k] for r in runs], axis=0) for k in (0, 1))
+            best = [np.min([r[k] for r in runs], axis=0) for k in range(len(calls))]
+            (t_plain, c_plain), (t_aa, c_aa) = best[:2]
             rows.append({"backend": backend, "shrink": label, "plain_s": t_plain, "antialias_s": t_aa,
                          "ratio": round(t_aa / t_plain, 2), "plain_cpu_s": c_plain, "antialias_cpu_s": c_aa,
                          "cpu_ratio": round(c_aa / c_plain, 2)})
+            if options:
+                rows[-1].update(vs_plain_base=round(t_aa / best[2][0], 2),
+                                vs_plain_base_cpu=round(c_aa / best[2][1], 2))
             log(f"antialias cost {backend} {label}: {t_plain * 1e3:.1f} ms -> {t_aa * 1e3:.1f} ms")
     return rows
 
@@ -330,7 +370,89 @@ def markdown(result, machine_md):
     for r in result["peer_cost"]:
         vs = "" if r["vs_plain"] is None else f"{r['vs_plain']:.2f}"
         lines.append(f"| {r['peer']} | {r['shrink']} | {r['s'] * 1e3:.1f} | {r['cpu_s'] * 1e3:.1f} | {vs} |")
+    versus = [f"{r['shrink']} {r['vs_plain_base']:.2f} ({r['vs_plain_base_cpu']:.2f} CPU)"
+              for r in result["cost"] if "vs_plain_base" in r]
+    if versus:
+        lines += ["", "The gl hardware_filter rows' antialiased time over plain gl's (software sampling, no "
+                  "options) of the same shrink, timed alternately with them: " + ", ".join(versus) + "."]
     return "\n".join(lines + ["", machine_md]) + "\n"
+
+
+def hardware_filter_markdown(result, machine_md):
+    """The separate section of :func:`main`: the :data:`HW_METHOD` column
+    beside the numpy reference's antialiased one (from the main table's
+    run, read from ``result["main_psnr"]``), and the gl cost rows."""
+    lines = [HW_SECTION, "",
+             "From a run other than the tables above (its machine line below): the gl backend's "
+             "`hardware_filter` with `antialias` (the texture unit's trilinear filtering of the source's "
+             "mipmaps by textureGrad, gradients the footprint edges; Mesa's llvmpipe reports an anisotropy of "
+             "16 but its anisotropic filter fails fpiwarp's check, so it runs trilinear), PSNR as above; "
+             "`numpy antialias` is the main table's `fpiwarp order 1 antialias`.", "",
+             f"| picture | map | shrink | {HW_METHOD} | numpy antialias | fpiwarp order 1 |",
+             "|---|---|---|---|---|---|"]
+    main_psnr = result.get("main_psnr", {})
+    for c in result["cases"]:
+        ref = main_psnr.get((c.picture, c.kind, c.shrink), {})
+        cells = [f"{v:.2f}" if isinstance(v, float) else "" for v in
+                 (c.psnr.get(HW_METHOD), ref.get("fpiwarp order 1 antialias"), ref.get("fpiwarp order 1"))]
+        lines.append(f"| {c.picture} | {c.kind} | {c.shrink} | " + " | ".join(cells) + " |")
+    lines += ["", "Cost, as above; `vs plain gl`: the antialiased time over plain gl's (software sampling, no "
+              "options), timed alternately with it:", "",
+              "| backend | shrink | without AA (ms) | with AA (ms) | ratio | CPU ratio | vs plain gl "
+              "| CPU vs plain gl |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in result["cost"]:
+        if "error" in r:
+            lines.append(f"| {r['backend']} | {r['shrink']} | failed: {r['error']} | | | | | |")
+            continue
+        vs = [f"{r[k]:.2f}" if k in r else "" for k in ("vs_plain_base", "vs_plain_base_cpu")]
+        lines.append(f"| {r['backend']} | {r['shrink']} | {r['plain_s'] * 1e3:.1f} | {r['antialias_s'] * 1e3:.1f} "
+                     f"| {r['ratio']:.2f} | {r['cpu_ratio']:.2f} | {vs[0]} | {vs[1]} |")
+    return "\n".join(lines + ["", machine_md]) + "\n"
+
+
+def main(argv=None):
+    """``--hardware-filter``: rerun the gl hardware-filtered parts only and
+    write them as the separate section of results/antialias.md and the key
+    ``gl_hardware_filter_run`` of antialias.json (see the module docstring)."""
+    from . import common  # noqa: PLC0415 - when run as a script
+
+    parser = argparse.ArgumentParser(prog="python3 -m benchmarks.antialias", description=__doc__.splitlines()[0])
+    parser.add_argument("--hardware-filter", action="store_true", required=True,
+                        help="rerun the gl hardware_filter column and cost rows only")
+    parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run; nothing is written)")
+    args = parser.parse_args(argv)
+    info = common.machine_facts()
+    t0 = time.perf_counter()
+    cases, _ = quality(args.quick, only={HW_METHOD})
+    rows = cost(args.quick, backends=["gl", "gl hardware_filter"])
+    info["wall_s"] = round(time.perf_counter() - t0, 1)
+    try:
+        info["load_average_at_end"] = [round(v, 2) for v in os.getloadavg()]
+    except OSError:
+        pass
+    md_path, json_path = common.RESULTS / "antialias.md", common.RESULTS / "antialias.json"
+    data = json.loads(json_path.read_text(encoding="utf-8"))
+    main_psnr = {(c["picture"], c["kind"], c["shrink"]): c for c in data.get("psnr_db", [])}
+    machine_md = common.machine_markdown(info)
+    if "load_average_at_end" in info:
+        machine_md += f"\n\nLoad average at the end: {info['load_average_at_end'][0]}."
+    section = hardware_filter_markdown({"cases": cases, "cost": rows, "main_psnr": main_psnr}, machine_md)
+    print(section)
+    if args.quick:
+        return
+    text = md_path.read_text(encoding="utf-8").split(HW_SECTION)[0].rstrip("\n")
+    common.write_text(md_path, text + "\n\n" + section)
+    data["gl_hardware_filter_run"] = {
+        "machine": info,
+        "psnr_db": [{"picture": c.picture, "kind": c.kind, "shrink": c.shrink, **c.psnr} for c in cases],
+        "cost": rows,
+    }
+    common.write_json(json_path, data)
+
+
+if __name__ == "__main__":
+    main()
 
 
 def figure(result, path, dpi=90):

@@ -25,8 +25,8 @@ import numpy as np
 import fpiwarp
 from fpiwarp.backends import get_backend
 
-from .batch_stacks import FULL, QUICK
-from .common import bests, interleaved, machine_facts, machine_markdown, random_frame_maps, test_image
+from .batch_stacks import FULL, QUICK, maps_case
+from .common import bests, interleaved, machine_facts, machine_markdown
 
 PARTS = ("loop", "loop, device arrays", "kernels only", "batch", "batch, device arrays")
 
@@ -84,9 +84,7 @@ def run(quick=False, backends=("opencl", "warp"), log=print):
     """[{backend, part: seconds}] timed in turn, the fastest of the repeats."""
     sizes = QUICK if quick else FULL
     n, h, w = sizes["stack"]
-    rng = np.random.default_rng(1)
-    stack = np.stack([test_image(h, w, "uint8", rng) for _ in range(n)])
-    maps = random_frame_maps(n, h, w)
+    stack, maps = maps_case(sizes)
     rows = []
     for backend in [b for b in backends if b in fpiwarp.available_backends()]:
         times, _ = interleaved(parts(backend, stack, maps), sizes["repeats"])  # warm-up: kernels compiled, buffers kept

@@ -49,12 +49,18 @@ def paired(fns, repeats):
     return [(min(times[i]), results[i]) for i in range(len(fns))]
 
 
-def run_maps(backends, sizes, log=print):
-    """The ``64 maps`` rows: loop and batch seconds per backend, and whether equal."""
+def maps_case(sizes):
+    """The ``64 maps`` case of ``sizes``: (the (N, H, W, 3) uint8 stack, its N FPIs)."""
     n, h, w = sizes["stack"]
     rng = np.random.default_rng(1)
     stack = np.stack([test_image(h, w, "uint8", rng) for _ in range(n)])
-    maps = random_frame_maps(n, h, w)
+    return stack, random_frame_maps(n, h, w)
+
+
+def run_maps(backends, sizes, log=print):
+    """The ``64 maps`` rows: loop and batch seconds per backend, and whether equal."""
+    n, h, w = sizes["stack"]
+    stack, maps = maps_case(sizes)
     rows = []
     for backend in backends:
         (loop_s, expected), (batch_s, got) = paired(
@@ -87,9 +93,7 @@ def run_frames(backends, sizes, log=print):
 def run_transfers(sizes, log=print):
     """The ``opencl transfers`` rows: seconds of the 64-map batch per transfer."""
     n, h, w = sizes["stack"]
-    rng = np.random.default_rng(1)
-    stack = np.stack([test_image(h, w, "uint8", rng) for _ in range(n)])
-    maps = random_frame_maps(n, h, w)
+    stack, maps = maps_case(sizes)
     backend = get_backend("opencl")
     cval = np.zeros(3)
     transfers = ("zero_copy", "serial", "pipelined")

@@ -160,8 +160,11 @@ def seed_correction(target, rows, dtype):
 
 def newton(target, rows, n, iters, tol, dtype, paired=False, seed=None):
     """Solve TPS(x) = target by Newton from the inverse of the R-linear
-    part plus the seed table's correction; NaN where not within ``tol``
-    after ``iters`` steps. ``paired``: the paired TPS core.
+    part plus the seed table's correction; where that does not end within
+    ``tol`` after ``iters`` steps and the correction there is not 0, again
+    from the R-linear inverse alone (the restart: a point the R-linear
+    seed solves is never lost to the table); NaN where neither does.
+    ``paired``: the paired TPS core.
 
     ``seed``: a warp's coarse-pass seed (x0, a, b) per target
     (:mod:`fpiwarp.block.coarse`): where x0 is finite and TPS(x0) (its
@@ -177,7 +180,18 @@ def newton(target, rows, n, iters, tol, dtype, paired=False, seed=None):
             out[~quick] = newton(target[~quick], rows, n, iters, tol, dtype, paired)
         return out
     mu1, mu2, mu3 = complex_at(rows[ROW_MU12], 0), complex_at(rows[ROW_MU12], 2), complex_at(rows[ROW_MU3], 0)
-    x = mu1 * target + mu2 * np.conj(target) + mu3 + seed_correction(target, rows, dtype)
+    start = mu1 * target + mu2 * np.conj(target) + mu3
+    correction = seed_correction(target, rows, dtype)
+    out = _newton_from(start + correction, target, rows, n, iters, tol, dtype, paired)
+    again = np.isnan(out) & (correction != 0)
+    if again.any():  # per point, so the restarted points alone give the same numbers
+        out[again] = _newton_from(start[again], target[again], rows, n, iters, tol, dtype, paired)
+    return out
+
+
+def _newton_from(x, target, rows, n, iters, tol, dtype, paired):
+    """Newton's iterates for TPS(x) = target from ``x``: x where within
+    ``tol`` (a point stops once it is), NaN where not after ``iters`` steps."""
     done = np.zeros(target.shape, dtype=bool)
     for _ in range(iters):
         val, dz, dzb = tps_core(x, rows, n, dtype, paired)

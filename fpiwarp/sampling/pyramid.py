@@ -111,11 +111,28 @@ KEPT_SOURCES = 2
 KEPT_SOURCE_BYTES = 128 << 20
 
 
+def _same_bytes(a, b):
+    """Whether arrays ``a`` and ``b`` of one shape and dtype hold the same
+    bytes, or None where they are not both C-contiguous. Compared as the
+    widest unsigned words that divide their size: for a 1080p RGB picture
+    less than half the time of ``np.array_equal`` element by element."""
+    if not (a.flags.c_contiguous and b.flags.c_contiguous):
+        return None
+    word = next(np.dtype(f"u{n}") for n in (8, 4, 2, 1) if a.nbytes % n == 0)
+    return np.array_equal(a.reshape(-1).view(word), b.reshape(-1).view(word))
+
+
 def _same_pixels(kept, image):
     """Whether ``image`` has the shape, dtype and values of ``kept`` (NaNs
-    equal to NaNs in float images)."""
-    return kept.shape == image.shape and kept.dtype == image.dtype and \
-        np.array_equal(kept, image, equal_nan=image.dtype.kind in "fc")
+    equal to NaNs in float images). Equal bytes are equal values; unequal
+    bytes of floats may still be (0.0 and -0.0, NaNs of other bits)."""
+    if kept.shape != image.shape or kept.dtype != image.dtype:
+        return False
+    floats = image.dtype.kind in "fc"
+    same = _same_bytes(kept, image)
+    if same is None or (not same and floats):
+        return np.array_equal(kept, image, equal_nan=floats)
+    return same
 
 
 class SourcePyramids:

@@ -108,6 +108,30 @@ void fpw_map_wirtinger(vec2 xy, out vec2 dz, out vec2 dzb) {
 vec2 fpw_edge_x(vec2 dz, vec2 dzb) { return dz + dzb; }
 vec2 fpw_edge_y(vec2 dz, vec2 dzb) { return vec2(dzb.y - dz.y, dz.x - dzb.x); }
 
+#ifdef FPW_HW_FILTER
+// ---- the texture unit's own filter (FPW_HW_FILTER with FPW_ANTIALIAS) -----
+// The option hardware_filter with antialias: pixels that do not shrink (both
+// level-0 counts 1) are the plain option's, bit for bit; the others read
+// the source's mipmaps (GL's own, floor sizes, built by the driver) by
+// textureGrad with the footprint edges as gradients: trilinear
+// minification, anisotropic where the driver offers it (the host sets the
+// sampler). No box average and no pyramid of the reference: its accuracy is
+// measured (benchmarks/antialias.py), not mirrored. A NaN edge counts as 0
+// (the reference's magnifying NaN), an edge over FPW_HW_EDGE_LIMIT source
+// pixels (next to the pole) as that long: the coarsest level.
+#define FPW_HW_EDGE_LIMIT 65536.0
+vec2 fpw_hw_edge(vec2 e, float len) {
+    if (isnan(len)) return vec2(0.0);
+    return len <= FPW_HW_EDGE_LIMIT ? e : vec2(FPW_HW_EDGE_LIMIT, 0.0);
+}
+
+vec4 fpw_sample_footprint(vec2 pos, vec2 ex, vec2 ey) {
+    float lx = length(ex);
+    float ly = length(ey);
+    if (fpw_aa_count(lx) == 1.0 && fpw_aa_count(ly) == 1.0) return fpw_sample(pos);
+    return fpw_hw_sample(pos, fpw_hw_edge(ex, lx), fpw_hw_edge(ey, ly));
+}
+#else
 // ---- the pyramid (fpiwarp/sampling/pyramid.py) ------------------------------
 // Levels k >= 1 of the source, float32, packed in one atlas texture built
 // by the host (fpiwarp/backends/gl/pyramid.py): level k's texels are the
@@ -199,6 +223,7 @@ vec4 fpw_sample_footprint(vec2 pos, vec2 ex, vec2 ey) {
     if (u > 0.0) v += u * fpw_supersample(k + 1, pos, ex, ey);
     return v;
 }
+#endif  // FPW_HW_FILTER
 
 // _antialias.sample_antialiased at output position xy
 vec4 fpw_sample_antialiased(vec2 xy) {

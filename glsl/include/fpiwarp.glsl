@@ -13,7 +13,8 @@
 //   FPW_ORDER (0, 1, 3), FPW_MODE (one of FPW_MODE_*),
 //   FPW_INT_TEXTURE (source is an unsigned integer texture),
 //   FPW_TILED (the source texture is one tile of a larger image, see below),
-//   FPW_HW_FILTER (the texture unit filters: the explicit fast option),
+//   FPW_HW_FILTER (the texture unit filters: the explicit fast option; with
+//     FPW_ANTIALIAS over the source's mipmaps, see antialias.glsl),
 //   FPW_GATHER + FPW_CHANNELS (order 1 through textureGather, see below),
 //   FPW_HOT_STAGES (rows forwarded as flat varyings, see fpw_row),
 //   FPW_BATCH (one instance of a batch: its block, source layer and rows,

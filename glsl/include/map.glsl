@@ -197,10 +197,13 @@ vec2 fpw_newton_seeded(vec2 target, int base, int n, bool paired, int iters, flo
         x = x0 - (fpw_cmul(a, r) + fpw_cmul(b, fpw_conj(r)));
     }
 #endif
+    vec2 start = vec2(0.0), correction = vec2(0.0);
     if (!done) {
         vec4 mu12 = fpw_rows[base + FPW_ROW_MU12];
         vec2 mu3 = fpw_rows[base + FPW_ROW_MU3].xy;
-        x = fpw_cmul(mu12.xy, target) + fpw_cmul(mu12.zw, fpw_conj(target)) + mu3 + fpw_seed_correction(target, base);
+        start = fpw_cmul(mu12.xy, target) + fpw_cmul(mu12.zw, fpw_conj(target)) + mu3;
+        correction = fpw_seed_correction(target, base);
+        x = start + correction;
     }
     // iters steps, then the reference's for-else (a check of the last
     // iterate) as a last pass of the loop; pixels done (seeded) skip it.
@@ -208,14 +211,21 @@ vec2 fpw_newton_seeded(vec2 target, int base, int n, bool paired, int iters, flo
     // even where no pixel of its SIMD group takes it; on the benchmark's
     // frame this shape of the seeded solve measured 5-10 % faster than an
     // early return before the loop and its for-else check.)
-    for (int it = 0; it <= iters && !done; ++it) {
-        fpw_tps(x, base, n, paired, val, dz, dzb);
-        vec2 res = val - target;
-        done = length(res) <= tol;
-        if (done || it == iters) break;
-        float det = dot(dz, dz) - dot(dzb, dzb);
-        vec2 step = (fpw_cmul(fpw_conj(dz), res) - fpw_cmul(dzb, fpw_conj(res))) / det;
-        x = x - step;
+    // The solve from the table's seed, then, where it fails and the
+    // table's correction is not 0, from the R-linear seed alone (the
+    // reference's restart).
+    int passes = correction != vec2(0.0) ? 2 : 1;
+    for (int pass = 0; pass < passes && !done; ++pass) {
+        if (pass == 1) x = start;
+        for (int it = 0; it <= iters && !done; ++it) {
+            fpw_tps(x, base, n, paired, val, dz, dzb);
+            vec2 res = val - target;
+            done = length(res) <= tol;
+            if (done || it == iters) break;
+            float det = dot(dz, dz) - dot(dzb, dzb);
+            vec2 step = (fpw_cmul(fpw_conj(dz), res) - fpw_cmul(dzb, fpw_conj(res))) / det;
+            x = x - step;
+        }
     }
     return done ? x : vec2(fpw_nan());
 }

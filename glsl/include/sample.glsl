@@ -94,11 +94,29 @@ vec4 fpw_cubic_weights(float t) {
 // (nearest or linear, border by the sampler object). GL quantizes the
 // bilinear weights (often to 8 bits), so results differ slightly from the
 // reference; non-finite positions still give cval.
-vec4 fpw_sample(vec2 pos) {
+// fpw_hw_sample reads at source position pos; with FPW_ANTIALIAS the
+// texture has mipmaps and it reads by textureGrad with the footprint edges
+// ex, ey (source pixels, converted to texture coordinates): the texture
+// unit's trilinear (and anisotropic) minification, see antialias.glsl.
+// fpw_sample is the plain option's read; with mipmaps it names a level of
+// detail below 0 (textureLod: magnified by the spec's rule, level 0
+// through the plain option's own filter, bit for bit; zero gradients would
+// leave the level to log2(0)). A driver whose anisotropic filter breaks
+// this gets none (GLWarper.checked_anisotropy: llvmpipe's blurs it).
+vec4 fpw_hw_sample(vec2 pos, vec2 ex, vec2 ey) {
     if (!fpw_in_range(pos)) return fpw_cval;
     pos = clamp(pos, vec2(-FPW_COORD_LIMIT), vec2(FPW_COORD_LIMIT));
-    return fpw_hw_scale * texture(fpw_src, (pos + 0.5) / vec2(fpw_src_size));
+    vec2 size = vec2(fpw_src_size);
+    vec2 uv = (pos + 0.5) / size;
+#ifdef FPW_ANTIALIAS
+    if (ex == vec2(0.0) && ey == vec2(0.0)) return fpw_hw_scale * textureLod(fpw_src, uv, -1.0);
+    return fpw_hw_scale * textureGrad(fpw_src, uv, ex / size, ey / size);
+#else
+    return fpw_hw_scale * texture(fpw_src, uv);
+#endif
 }
+
+vec4 fpw_sample(vec2 pos) { return fpw_hw_sample(pos, vec2(0.0), vec2(0.0)); }
 #elif defined(FPW_GATHER)
 // Order 1 by textureGather, for 'constant', 'edge' and 'wrap' on untiled
 // sources: one call per channel returns that channel of the 2×2 taps, where

@@ -224,14 +224,11 @@ def seed_correction(blk: wp.array(dtype=wp.vec4), s0: int, t: wp.vec2):
 
 
 @wp.func
-def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2, paired: bool):
-    """Solve TPS(x) = target by Newton from the inverse of the R-linear part
-    plus the seed table's correction; NaN when not within newton_tol after ``iters`` steps."""
+def tps_newton_from(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2, paired: bool,
+                    x: wp.vec2):
+    """Newton's iterates for TPS(x) = target from ``x``: x once within
+    newton_tol, NaN when not after ``iters`` steps."""
     tol = blk[s0 + ROW_L3][2]
-    mu1 = lo(blk[s0 + ROW_MU12])
-    mu2 = hi(blk[s0 + ROW_MU12])
-    mu3 = lo(blk[s0 + ROW_MU3])
-    x = cmul(mu1, target) + cmul(mu2, conj(target)) + mu3 + seed_correction(blk, s0, target)
     nan2 = wp.vec2(wp.nan, wp.nan)
     for k in range(iters):
         # the seed is rarely within tol: its pass takes the derivatives at
@@ -250,6 +247,23 @@ def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target
     if tps_miss(blk, s0, n, x, paired, target) <= tol:
         return x
     return nan2
+
+
+@wp.func
+def tps_newton(blk: wp.array(dtype=wp.vec4), s0: int, n: int, iters: int, target: wp.vec2, paired: bool):
+    """Solve TPS(x) = target by Newton from the inverse of the R-linear part
+    plus the seed table's correction, and where that fails and the
+    correction is not 0, from the R-linear inverse alone (the reference's
+    restart); NaN when neither ends within newton_tol after ``iters`` steps."""
+    mu1 = lo(blk[s0 + ROW_MU12])
+    mu2 = hi(blk[s0 + ROW_MU12])
+    mu3 = lo(blk[s0 + ROW_MU3])
+    start = cmul(mu1, target) + cmul(mu2, conj(target)) + mu3
+    correction = seed_correction(blk, s0, target)
+    x = tps_newton_from(blk, s0, n, iters, target, paired, start + correction)
+    if wp.isnan(x[0]) and (correction[0] != 0.0 or correction[1] != 0.0):
+        x = tps_newton_from(blk, s0, n, iters, target, paired, start)
+    return x
 
 
 # --- one stage, and the walk over a block's stages ---------------------------

@@ -35,12 +35,20 @@
  * the launch reads block z of the stacked blocks (block_rows float4 rows
  * each; 0 shares one block) and item which[z] of the stacked inputs and
  * outputs (in_items, out_items values apart). Everything else is the
- * single kernel's code, so a batch equals the loop bit for bit. */
+ * single kernel's code, so a batch equals the loop bit for bit.
+ *
+ * z is the group's id, not the item's: every batch kernel's groups are one
+ * item deep (reqd_work_group_size(..., 1)), so the two are equal. Selected
+ * by get_global_id(2), PoCL 3.1 compiled part of the per-pixel code 4
+ * lanes wide instead of 8 (186 packed 128-bit float instructions against
+ * the single kernel's 26; likely it did not see the selected pointers as
+ * uniform over the group) and the same warps took 1.2x the single
+ * kernel's CPU time (benchmarks/results/cpu_profile.md). */
 #ifdef FW_BATCH
 #define FW_BATCH_ARGS , __global const int *restrict which, int block_rows
 #define FW_BATCH_SELECT(fw_in, fw_out, in_items, out_items) \
     do {                                                    \
-        size_t fw_z = get_global_id(2), fw_n = which[fw_z]; \
+        size_t fw_z = get_group_id(2), fw_n = which[fw_z];  \
         block += fw_z * block_rows;                         \
         fw_in += fw_n * (size_t)(in_items);                 \
         fw_out += fw_n * (size_t)(out_items);               \
@@ -188,7 +196,7 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
 #define FW_PIXEL_MAP(block, px, py) fw_map(block, fw_cx((float)(px), (float)(py)))
 #endif
 #if defined(FW_COARSE) && defined(FW_BATCH)
-#define FW_COARSE_SELECT() (coarse += get_global_id(2) * (size_t)(FW_COARSE_FLOATS * nx * ny))
+#define FW_COARSE_SELECT() (coarse += get_group_id(2) * (size_t)(FW_COARSE_FLOATS * nx * ny))
 #else
 #define FW_COARSE_SELECT()
 #endif
@@ -225,7 +233,7 @@ __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
 void coarse_pass(fw_block_t block, __global float *restrict coarse, int nx, int ny FW_BATCH_ARGS)
 {
 #ifdef FW_BATCH
-    block += get_global_id(2) * block_rows;
+    block += get_group_id(2) * block_rows; /* groups are one item deep, as FW_BATCH_SELECT's */
 #endif
     FW_COARSE_SELECT();
     int k = min((int)get_global_id(0), nx * ny - 1);
@@ -392,7 +400,7 @@ FW_FN fw_pxv fw_sample_level(__global const float *lvl, int lw, int lh, fw_fv fx
  * counts of the lanes reading it (lanes with fewer sub-samples skip the
  * extra ones). The plain sample is taken only where some lane needs it. */
 #ifdef FW_BATCH
-#define FW_PYR_SELECT() (pyr += which[get_global_id(2)] * (size_t)pyr_items)
+#define FW_PYR_SELECT() (pyr += which[get_group_id(2)] * (size_t)pyr_items)
 #else
 #define FW_PYR_SELECT()
 #endif

@@ -287,7 +287,8 @@ FW_FN fw_c fw_newton_seeded(fw_c target, fw_rows_t rows, int n, bool paired, int
                             fw_seed_t seed)
 {
     fw_c mu1 = fw_at(rows, FW_ROW_MU12, 0), mu2 = fw_at(rows, FW_ROW_MU12, 2), mu3 = fw_at(rows, FW_ROW_MU3, 0);
-    fw_c x = fw_add(fw_rlinear(target, mu1, mu2, mu3), fw_seed_correction(target, rows));
+    fw_c start = fw_rlinear(target, mu1, mu2, mu3), correction = fw_seed_correction(target, rows);
+    fw_c x = fw_add(start, correction);
     fw_c dz, dzb;
     bool done = false;
     if (seeded) {
@@ -296,21 +297,29 @@ FW_FN fw_c fw_newton_seeded(fw_c target, fw_rows_t rows, int n, bool paired, int
         fw_c step = fw_add(fw_mul(seed.a, res), fw_mul(seed.b, fw_conj(res)));
         x = fw_select(done, fw_sub(seed.x, step), x);
     }
-    for (int k = 0; k < iters && !done; ++k) {
-        /* the seed is rarely within tol: its pass takes the derivatives at
-         * once; a later pass checks the value first and takes them only
-         * for a point that goes on (the same iterates, fewer terms) */
-        fw_c res = fw_sub(fw_tps_d(x, rows, n, paired, k == 0, &dz, &dzb), target);
-        done = sqrt(fw_abs2(res)) <= tol;
-        if (!done && k > 0)
-            fw_tps_d(x, rows, n, paired, true, &dz, &dzb);
-        float det = fw_abs2(dz) - fw_abs2(dzb);
-        fw_c step = fw_scale(fw_sub(fw_mul(fw_conj(dz), res), fw_mul(dzb, fw_conj(res))), 1.0f / det);
-        x = fw_select(done, x, fw_sub(x, step));
-    }
-    if (!done) {
-        fw_c res = fw_sub(fw_tps_d(x, rows, n, paired, false, &dz, &dzb), target);
-        done = sqrt(fw_abs2(res)) <= tol;
+    /* the solve from the table's seed, then, where it fails and the
+     * table's correction is not 0, from the R-linear seed alone (the
+     * reference's restart) */
+    int passes = (correction.re != 0.0f || correction.im != 0.0f) ? 2 : 1;
+    for (int pass = 0; pass < passes && !done; ++pass) {
+        if (pass == 1)
+            x = start;
+        for (int k = 0; k < iters && !done; ++k) {
+            /* the seed is rarely within tol: its pass takes the derivatives
+             * at once; a later pass checks the value first and takes them
+             * only for a point that goes on (the same iterates, fewer terms) */
+            fw_c res = fw_sub(fw_tps_d(x, rows, n, paired, k == 0, &dz, &dzb), target);
+            done = sqrt(fw_abs2(res)) <= tol;
+            if (!done && k > 0)
+                fw_tps_d(x, rows, n, paired, true, &dz, &dzb);
+            float det = fw_abs2(dz) - fw_abs2(dzb);
+            fw_c step = fw_scale(fw_sub(fw_mul(fw_conj(dz), res), fw_mul(dzb, fw_conj(res))), 1.0f / det);
+            x = fw_select(done, x, fw_sub(x, step));
+        }
+        if (!done) {
+            fw_c res = fw_sub(fw_tps_d(x, rows, n, paired, false, &dz, &dzb), target);
+            done = sqrt(fw_abs2(res)) <= tol;
+        }
     }
     return fw_select(done, x, fw_cx(NAN, NAN));
 }

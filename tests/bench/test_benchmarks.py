@@ -11,12 +11,12 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from support import ROOT
-from support.requirements import required_backends
+from support.requirements import required_backends, use_backend
 from support.strategies import quads
 
 sys.path.insert(0, str(ROOT))  # benchmarks/ lives beside the package, not in it
 
-from benchmarks import methods, speed  # noqa: E402 (needs the path above)
+from benchmarks import batch_loop, methods, speed  # noqa: E402 (needs the path above)
 
 finite = st.floats(-2.0, 2.0, allow_nan=False)
 
@@ -320,6 +320,24 @@ def test_quick_run_batch_section_is_well_formed(quick_run):
     assert all(r["loop_s"] > 0 and r["batch_s"] > 0 and r["speedup"] > 0 for r in data["maps"])
     assert all(r["loop_fps"] > 0 and r["batch_fps"] > 0 for r in data["frames"])
     assert "batch == loop" in (quick_run / "batch.md").read_text()
+
+
+def test_batch_loop_before_is_the_old_selection_and_equal():
+    """batch_loop's --before builds the opencl batch from the source with the
+    old get_global_id(2) selection (the current source has the new one),
+    and every batch of the run, old or new, equals its loop bit for bit."""
+    use_backend("opencl")
+    from fpiwarp.backends import get_backend
+
+    backend = get_backend("opencl")
+    assert batch_loop.SELECT_AFTER in backend._source and batch_loop.SELECT_BEFORE not in backend._source
+    result = batch_loop.run(("opencl",), quick=True, rounds=1, before=True, log=lambda _: None)
+    rows = {(r["backend"], r["part"]): r for r in result["rows"]}
+    assert set(rows) == {("opencl", "loop"), ("opencl", "batch"), (batch_loop.BEFORE, "batch")}
+    assert all(r["equal"] and r["wall_s"] > 0 for r in rows.values())
+    built = batch_loop._BUILT_BEFORE[id(backend)]  # the old programs the --before batch ran
+    assert built and all("-DFW_BATCH=1" in options for options in built)
+    assert batch_loop.BEFORE in batch_loop.markdown(result)
 
 
 def test_local_speed_batch_section_replaces_only_itself(tmp_path):

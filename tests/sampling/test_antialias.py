@@ -198,9 +198,11 @@ def test_backends_agree_antialiasing_next_to_the_pole(any_backend, mode):
     kernel_cases.assert_images_agree(got, want, np.uint8)
 
 
-def test_gl_refuses_hardware_filter_with_antialias(gl_backend):
-    with pytest.raises(ValueError, match="cannot be combined"):
-        fpiwarp.warp_image(np.zeros((4, 4), np.uint8), SHRINK, antialias=True, backend=gl_backend,
+def test_gl_hardware_filter_with_antialias_keeps_the_options_limits(gl_backend):
+    """The combination filters in the texture unit (tests/backends/gl/test_gl_texgrad.py);
+    what hardware_filter cannot do stays refused."""
+    with pytest.raises(fpiwarp.FpiwarpError, match="hardware_filter"):
+        fpiwarp.warp_image(np.zeros((4, 4), np.uint8), SHRINK, order=3, antialias=True, backend=gl_backend,
                            backend_options={"hardware_filter": True})
 
 

@@ -294,6 +294,30 @@ def test_source_pyramids_keep_the_last_few_sources_by_their_pixels():
     assert len(kept) == 0 and kept.get(a) == 5
 
 
+@settings(max_examples=60, deadline=None)
+@given(dtype=st.sampled_from(["uint8", "uint16", "int32", "float32", "float64", "bool"]),
+       shape=st.tuples(st.integers(1, 5), st.integers(1, 7), st.integers(1, 4)),
+       data=st.data())
+def test_source_pyramids_match_pixels_as_np_array_equal_does(dtype, shape, data):
+    """A kept pyramid serves a source exactly where np.array_equal (NaN
+    equal to NaN for floats) says its pixels equal the kept copy's, for any
+    layout (a strided view, a copy) and for float bit patterns that differ
+    in equal values (0.0 and -0.0, NaNs of other payloads)."""
+    floats = dtype.startswith("float")
+    elements = st.sampled_from([0.0, -0.0, 1.5, np.nan, np.inf]) if floats else None
+    kept_pixels = data.draw(hnp.arrays(dtype, shape, elements=elements))
+    other = data.draw(hnp.arrays(dtype, shape, elements=elements)) if data.draw(st.booleans()) else kept_pixels.copy()
+    if floats and data.draw(st.booleans()):  # the same values in other bits
+        other = np.where(other == 0, -other, other).astype(dtype)
+        other[np.isnan(other)] = np.array(np.nan, dtype) * -1
+    if data.draw(st.booleans()):  # not C-contiguous
+        other = np.asfortranarray(other)
+    kept = SourcePyramids(lambda pixels: object())
+    first = kept.get(kept_pixels)
+    served = kept.get(other) is first
+    assert served == np.array_equal(kept_pixels, other, equal_nan=floats)
+
+
 def test_source_pyramids_are_thread_safe():
     """Threads getting the pyramids of a few sources at once all get a
     pyramid of their source's pixels; at most ``size`` are kept."""

@@ -12,7 +12,9 @@ mirrors :func:`fpiwarp.block.evaluate` and :mod:`fpiwarp.sampling.sampler`:
   fastest format of software rasterizers), rounding in the shader into an
   integer framebuffer, so results match the numpy reference;
   ``hardware_filter=True`` lets the texture unit filter instead (GL
-  quantizes the weights). What makes it fast on Mesa's llvmpipe, which
+  quantizes the weights); with ``antialias=True`` too, the texture unit
+  filters the footprint, trilinear over the source's mipmaps by
+  textureGrad (see :doc:`/guides/antialiasing`). What makes it fast on Mesa's llvmpipe, which
   runs it on the CPU: per-draw values reach the fragment stage as flat
   varyings rather than uniforms (listed once, in ``glsl/include/per_draw.glsl``), order 1 reads one textureGather per
   channel instead of a texelFetch per tap, and 3-channel pictures come

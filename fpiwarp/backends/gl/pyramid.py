@@ -20,6 +20,12 @@ antialiased warp of the same pixels (another map, the next frame of an
 animation, a batch with one source) reuses one. A host array is compared
 with a copy of the pixels the atlas was built from, so a writeable array
 changed in place gets a new atlas, never stale levels.
+
+The option ``hardware_filter`` with antialiasing reads no atlas: the
+texture unit filters the source's own mipmaps (GL's floor sizes, built by
+the driver, ``build_mipmaps``), kept by the same rule
+(:meth:`PyramidCache.mipmapped`): one normalized texture with its
+mipmaps, uploaded and built once per source.
 """
 
 import moderngl
@@ -102,6 +108,10 @@ class PyramidCache:
         self.atlases = SourcePyramids(build_atlas)  # (atlas array, rects) per source
         self._uploaded = None  # the (atlas, rects) in the texture
         self._texture = None
+        #: the hardware filter's sources: (kept pixels,) per source, by the same rule
+        self.sources = SourcePyramids(lambda pixels: (pixels,))
+        self._mip_uploaded = None  # the entry of self.sources in the mipmapped texture
+        self._mip_texture = None
 
     @property
     def builds(self):
@@ -121,9 +131,29 @@ class PyramidCache:
             self._uploaded = entry
         return self._texture, entry[1]
 
+    def mipmapped(self, image, dtype):
+        """The texture of ``image`` as moderngl ``dtype`` (the hardware
+        filter's normalized format) with its mipmaps, uploaded and built by
+        the driver only when no kept source's pixels equal ``image``'s (the
+        rule of :meth:`host`)."""
+        entry = self.sources.get(image)
+        if self._mip_uploaded is not entry:
+            h, w, c = image.shape
+            tex = self._mip_texture
+            if tex is None or (tex.size, tex.components, tex.dtype) != ((w, h), c, dtype):
+                if tex is not None:
+                    tex.release()
+                tex = self._mip_texture = self.ctx.texture((w, h), c, dtype=dtype)
+            tex.write(np.ascontiguousarray(entry[0]))
+            tex.build_mipmaps()
+            self._mip_uploaded = entry
+        return self._mip_texture
+
     def release(self):
-        """Free the texture and forget the atlases."""
-        if self._texture is not None:
-            self._texture.release()
-        self._texture = self._uploaded = None
+        """Free the textures and forget the atlases and sources."""
+        for tex in (self._texture, self._mip_texture):
+            if tex is not None:
+                tex.release()
+        self._texture = self._uploaded = self._mip_texture = self._mip_uploaded = None
         self.atlases.clear()
+        self.sources.clear()

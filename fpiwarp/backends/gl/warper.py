@@ -84,10 +84,18 @@ class GLWarper:
         :mod:`.readback`). Default: on little-endian hosts whose driver
         renders into RGB32UI (GL does not require it; llvmpipe and NVIDIA's
         driver do).
+    anisotropy : float, optional
+        The largest anisotropy of the texture unit's minification where
+        ``hardware_filter`` and ``antialias`` are both set (1: trilinear
+        only; at most the driver's GL_MAX_TEXTURE_MAX_ANISOTROPY). Default:
+        the driver's largest where its anisotropic filter passes
+        :meth:`checked_anisotropy`, else 1 (Mesa 22.3's llvmpipe reports 16
+        but fails: it ignores textureGrad's gradients and blurs pixels
+        that are not minified).
     """
 
     def __init__(self, ctx=None, max_texture_size=None, ubo_binding=0, specialize=True, gather=None,
-                 pack_rgb=None):
+                 pack_rgb=None, anisotropy=None):
         self.ctx = ctx if ctx is not None else create_context()
         info = self.ctx.info
         limits = [info["GL_MAX_TEXTURE_SIZE"], info.get("GL_MAX_RENDERBUFFER_SIZE") or 1 << 30]
@@ -105,6 +113,7 @@ class GLWarper:
         if pack_rgb is None:
             pack_rgb = sys.byteorder == "little" and readback.renders_rgb32ui(self.ctx)
         self.pack_rgb = bool(pack_rgb)
+        self._anisotropy = None if anisotropy is None else self._clamped_anisotropy(anisotropy)
         self.ubo = self.ctx.buffer(reserve=MAX_ROWS * 16)
         self.programs = ProgramCache(self.ctx, ubo_binding, _varying_slots(info))
         self.targets = TargetCache(self.ctx)
@@ -112,6 +121,49 @@ class GLWarper:
         self.pyramids = PyramidCache(self.ctx)
         self.short_map = False  # set by set_map
         self.newton_map = False  # set by set_map
+
+    # ---- the texture unit's anisotropic filter (hardware_filter with antialias)
+    def _clamped_anisotropy(self, value):
+        most = float(getattr(self.ctx, "max_anisotropy", 1.0) or 1.0)
+        return min(max(1.0, float(value)), max(1.0, most))
+
+    @property
+    def anisotropy(self):
+        """The anisotropy of the hardware-filtered antialiasing's sampler
+        (see the class docstring; checked on first use, settable)."""
+        if self._anisotropy is None:
+            self._anisotropy = 1.0  # the check below draws with trilinear as its reference
+            self._anisotropy = self.checked_anisotropy()
+        return self._anisotropy
+
+    @anisotropy.setter
+    def anisotropy(self, value):
+        self._anisotropy = self._clamped_anisotropy(value)
+
+    def checked_anisotropy(self):
+        """The driver's largest anisotropy if its filter passes two checks
+        on a small texture, else 1: read through it, the identity gives
+        what ``hardware_filter`` alone gives (level 0), and an isotropic
+        shrink by 4 what trilinear filtering gives within a level (GL:
+        anisotropy changes nothing where the footprint is isotropic)."""
+        most = self._clamped_anisotropy(float("inf"))
+        if most <= 1.0:
+            return 1.0
+        img = (np.arange(32 * 32 * 3).reshape(32, 32, 3) * 37 % 251).astype(np.uint8)
+        from ...maps import RLinear  # noqa: PLC0415 - the maps load after the backends
+
+        identity, shrink = RLinear(1, 0, 0).params(), RLinear(4, 0, 0).params()
+        saved = self._anisotropy
+        try:
+            plain = self.warp_block(img, identity, (32, 32), hardware_filter=True)
+            trilinear = self.warp_block(img, shrink, (8, 8), hardware_filter=True, antialias=True)
+            self._anisotropy = most
+            aniso_plain = self.warp_block(img, identity, (32, 32), hardware_filter=True, antialias=True)
+            aniso = self.warp_block(img, shrink, (8, 8), hardware_filter=True, antialias=True)
+        finally:
+            self._anisotropy = saved
+        same = np.array_equal(plain, aniso_plain) and np.abs(aniso.astype(int) - trilinear).max() <= 1
+        return most if same else 1.0
 
     # ---- programs and per-draw values
     @property
@@ -216,7 +268,12 @@ class GLWarper:
         ``antialias=True`` averages each pixel's footprint over the source's
         pyramid (fpiwarp.sampling.antialias; software sampling, FPW_ANTIALIAS
         in glsl/include/antialias.glsl); the pyramid is built once per
-        source pixels and reused (:class:`.pyramid.PyramidCache`).
+        source pixels and reused (:class:`.pyramid.PyramidCache`). Both
+        set: the texture unit filters the footprint itself, by textureGrad
+        over the source's mipmaps (built by the driver once per source
+        pixels, :meth:`.pyramid.PyramidCache.mipmapped`) with trilinear and
+        anisotropic minification (up to :attr:`anisotropy`); pixels that do
+        not shrink are exactly those of ``hardware_filter`` alone.
         """
         return self.warp_block(image, transform.inverse.params(), output_shape, order=order, mode=mode, cval=cval,
                                hardware_filter=hardware_filter, antialias=antialias)
@@ -227,13 +284,13 @@ class GLWarper:
         parameter block is ``block`` (``transform.inverse.params()``, packed
         once by a bound map)."""
         image, cval = check_sampling(image, order, mode, cval)
-        if hardware_filter and antialias:
-            raise ValueError("hardware_filter and antialias cannot be combined: antialiasing samples in software")
         if hardware_filter:
             if order not in (0, 1):
                 raise ValueError(f"hardware_filter supports order 0 or 1, got {order}")
             if mode not in HW_MODES:
                 raise ValueError(f"hardware_filter supports modes {HW_MODES}, got {mode!r}")
+            if antialias:
+                _ = self.anisotropy  # checked (by drawing) before this call binds its map and textures
         stages = self.set_map(block)
         return self._render(image, output_shape, order, mode, cval, None, hardware_filter, stages, antialias)
 
@@ -352,9 +409,9 @@ class GLWarper:
                     set_pyramid_values(prog, rects)
                 render_tiled_source(self, image, out, prog, draw, cval, covers=mesh is not None, atlas=atlas)
             else:
-                src = self._upload_source(prog, image, hw, order, mode, cval)
+                src = self._upload_source(prog, image, hw, order, mode, cval, antialias)
                 src.use(0)
-                if antialias:
+                if antialias and not hw:
                     self.bind_pyramid(prog, image)
                 for y0, y1 in tiles(oh, self.max_size):
                     for x0, x1 in tiles(ow, self.max_size):
@@ -387,18 +444,33 @@ class GLWarper:
         in targets of (w, h) = ``full`` (default: ``out``'s, up to the size limit)."""
         self._draw_tile(image, out, (prog, None), draw, box, packs, full)
 
-    def _upload_source(self, prog, image, hw, order, mode, cval):
+    def _upload_source(self, prog, image, hw, order, mode, cval, mipmaps=False):
+        """The source texture (bound by the caller to unit 0); for the
+        hardware filter also its sampler object, bound here. ``mipmaps``
+        (hardware filter with antialiasing): the source's mipmapped
+        texture, kept across calls, sampled trilinearly and anisotropically
+        below level 0 and by the plain filter (``order``) at level 0."""
         h, w, c = image.shape
         if hw:
             dt, scale = HW_DTYPES[image.dtype]
-            tex = self.targets.texture("src_hw", (w, h), c, dt)
-            tex.write(image)
+            if mipmaps:
+                tex = self.pyramids.mipmapped(image, dt)
+            else:
+                tex = self.targets.texture("src_hw", (w, h), c, dt)
+                tex.write(image)
             set_uniform(prog, "fpw_hw_scale", scale)
             filt = moderngl.NEAREST if order == 0 else moderngl.LINEAR
             border = tuple(np.resize(cval / scale, 4)) if mode == "constant" else None
             repeat = mode == "wrap"
-            sampler = self.targets.cached("sampler", (order, mode, border), lambda: self.ctx.sampler(
-                repeat_x=repeat, repeat_y=repeat, filter=(filt, filt), border_color=border))
+            minify = moderngl.LINEAR_MIPMAP_LINEAR if mipmaps else filt
+            aniso = self.anisotropy if mipmaps else 1.0
+
+            def make():
+                sampler = self.ctx.sampler(repeat_x=repeat, repeat_y=repeat, filter=(minify, filt),
+                                           border_color=border)
+                sampler.anisotropy = aniso
+                return sampler
+            sampler = self.targets.cached("sampler", (order, mode, border, mipmaps, aniso), make)
             sampler.use(0)
             return tex
         tex = self.targets.texture("src", (w, h), c, SOURCE_TEXTURE_DTYPES[image.dtype])

@@ -74,6 +74,9 @@ CHUNK_BYTES = 256 << 20
 #: of 7 interleaved in one run: chunks of 2 MiB (one image) 113-130 ms,
 #: 4 MiB 121-178 ms, 8-256 MiB 213-356 ms, the loop of warp_image
 #: 178-200 ms (PoCL 3.1, pthread-skylake-avx512, 2 cores, 1 MiB L2 each).
+#: Again with the batch kernels' group-id selection (fpiwarp.cl, FW_BATCH),
+#: process CPU time, best of 11 interleaved (load 4-5): 1 image 114 ms,
+#: 2 images 141 ms, 4 images 160 ms, 64 images 165 ms.
 ZERO_COPY_CHUNK_BYTES_PER_UNIT = 1 << 20
 #: Chunk size of the pipelined transfers: small enough that a batch is a
 #: few chunks whose copies overlap the kernels of their neighbours.

@@ -17,6 +17,8 @@ block is uploaded only when its bytes differ from the job's last one.
 packed and checked once, and each kind of call keeps its job.
 """
 
+import weakref
+
 import numpy as np
 
 from ...block.coarse import coarse_shape
@@ -122,6 +124,8 @@ class ClJob:
         #: these pixels (:attr:`~.backend.Backend.host_pyramids`), set at each call
         self._antialias = antialias
         self._options = options
+        #: (a weak reference to the pyramid the kernel's arguments name, its levels built then)
+        self._pyramid_set = (lambda: None, 0)
         if antialias:
             args += [None, None, np.int32(0), np.int32(0), np.int32(1), None]
         if COARSE_OPTION in options:
@@ -164,13 +168,16 @@ class ClJob:
             cl.enqueue_copy(queue, self._src, image, is_blocking=False)
         pyramid = be.host_pyramids.get(image) if self._antialias else None
         if pyramid is not None:  # a kept pyramid has the levels of earlier calls: only missing ones are built
-            upto = pyramid.top if inverse is None else levels_needed(inverse, self.output_shape, pyramid.top)
-            pyramid.build(self._options, src, upto)
+            if not pyramid.complete:
+                upto = pyramid.top if inverse is None else levels_needed(inverse, self.output_shape, pyramid.top)
+                pyramid.build(self._options, src, upto)
             self._set_pyramid(pyramid)
-        out = self._launch(queue)
-        if pyramid is not None and pyramid.needs_more():  # a footprint past the estimate: all levels, again
-            pyramid.build(self._options, src)
-            self._set_pyramid(pyramid)
+        # a partial pyramid's flag is read with the output (one wait)
+        partial = pyramid if pyramid is not None and not pyramid.complete else None
+        out = self._launch(queue, partial)
+        if partial is not None and partial.needs_more():  # a footprint past the estimate: all levels, again
+            partial.build(self._options, src)
+            self._set_pyramid(partial)
             out = self._launch(queue)
         if self._src_in_place:
             self._kernel.set_arg(1, self._src)  # the caller's image is not kept
@@ -178,12 +185,17 @@ class ClJob:
         return out
 
     def _set_pyramid(self, pyramid):
-        """Point the kernel at ``pyramid`` (its arguments follow cval)."""
-        for i, arg in enumerate(pyramid.args(), start=PYRAMID_ARG):
-            self._kernel.set_arg(i, arg)
+        """Point the kernel at ``pyramid`` (its arguments follow cval),
+        unless it already is, with as many levels."""
+        named, built = self._pyramid_set
+        if named() is not pyramid or built != pyramid.built:
+            for i, arg in enumerate(pyramid.args(), start=PYRAMID_ARG):
+                self._kernel.set_arg(i, arg)
+            self._pyramid_set = (weakref.ref(pyramid), pyramid.built)
 
-    def _launch(self, queue):
-        """Run the kernel as set into a new output array and read it back."""
+    def _launch(self, queue, pyramid=None):
+        """Run the kernel as set into a new output array and read it back
+        (and ``pyramid``'s need flag before it: :meth:`DevicePyramid.read_need`)."""
         cl, be = self.backend._cl, self.backend
         out = np.empty(self.out_shape, dtype=self.dtype)
         if self._zero_copy:  # the kernel writes `out` itself
@@ -192,6 +204,8 @@ class ClJob:
         if self._coarse is not None:  # the queue is in order: the records are written before the warp reads them
             cl.enqueue_nd_range_kernel(queue, self._coarse, self._coarse_global, (self._local[0],))
         cl.enqueue_nd_range_kernel(queue, self._kernel, self._global, self._local)
+        if pyramid is not None:
+            pyramid.read_need()
         if self._zero_copy:
             mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out.shape, out.dtype)
             event.wait()

@@ -80,6 +80,7 @@ class DevicePyramid:
         self.need = cl.Buffer(backend.context, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.zeros(1, np.int32))
         self.built = 0
         self.chunk = None  # a batch's: the images [a, b) built last
+        self._flag = self._flag_read = None  # the flag's host copy and its pending read (read_need)
 
     def build(self, options, src, upto=None, queue=None, src_items=None, wait_for=None, count=None):
         """Enqueue the levels built + 1 .. ``upto`` (default: all) of the
@@ -118,13 +119,29 @@ class DevicePyramid:
         return (self.buffer, self.levels, np.int32(self.top), np.int32(self.built), np.int32(self.items),
                 self.need)
 
+    @property
+    def complete(self):
+        """Whether every level is built: no kernel then asks for more (its
+        levels end at top), nor needs :func:`levels_needed`'s estimate."""
+        return self.built >= self.top
+
+    def read_need(self):
+        """Enqueue the read of the flag the kernels enqueued before set
+        (without waiting: an output read after it, on the same in-order
+        queue, waits for both); :meth:`needs_more` then answers."""
+        cl = self.backend._cl
+        self._flag = np.zeros(1, np.int32)
+        self._flag_read = cl.enqueue_copy(self.backend.queue, self._flag, self.need, is_blocking=False)
+
     def needs_more(self):
         """Whether the last kernels asked for levels past :attr:`built`
-        (waits for them); clears the flag."""
-        cl, queue = self.backend._cl, self.backend.queue
-        flag = np.zeros(1, np.int32)
-        cl.enqueue_copy(queue, flag, self.need)
+        (waits for them, or for the read :meth:`read_need` enqueued);
+        clears the flag."""
+        if self._flag_read is None:
+            self.read_need()
+        self._flag_read.wait()
+        flag, self._flag_read = self._flag, None
         if flag[0]:
-            cl.enqueue_copy(queue, self.need, np.zeros(1, np.int32))
+            self.backend._cl.enqueue_copy(self.backend.queue, self.need, np.zeros(1, np.int32))
         return bool(flag[0])
 

@@ -90,6 +90,30 @@ def test_a_footprint_past_the_estimate_gets_its_levels(backend, monkeypatch):
     assert prepared.levels_needed is not None
 
 
+def test_a_complete_kept_pyramid_needs_no_estimate_nor_flag(backend, monkeypatch):
+    """Once the kept pyramid has every level, a call neither estimates the
+    levels nor reads the kernel's flag (no footprint reads past the top),
+    and gives the picture of a fresh pyramid."""
+    from fpiwarp.backends.opencl import prepared
+    from fpiwarp.backends.opencl.pyramid import DevicePyramid
+
+    image = kernel_cases.make_image((120, 160, 3), np.uint8, seed=5)
+    backend.host_pyramids.clear()
+    want = backend.warp_image(image, MIXED, (24, 40), antialias=True, **KW)
+    backend.warp_image(image, RLinear(1e-4, 0, 0), (24, 40), antialias=True, **KW)  # builds to the top
+    (pyramid,) = backend.host_pyramids.values()
+    assert pyramid.complete
+
+    def refused(*args):
+        raise AssertionError("called for a complete pyramid")
+
+    monkeypatch.setattr(prepared, "levels_needed", refused)
+    monkeypatch.setattr(DevicePyramid, "needs_more", refused)
+    monkeypatch.setattr(DevicePyramid, "read_need", refused)
+    for _ in range(2):
+        np.testing.assert_array_equal(backend.warp_image(image, MIXED, (24, 40), antialias=True, **KW), want)
+
+
 def test_calls_and_bound_maps_reuse_the_kept_device_pyramid(backend, monkeypatch):
     """warp_image calls and bound maps over one host image read one device
     pyramid: a call needing more levels than the kept pyramid has builds
