@@ -2,6 +2,7 @@
 against the per-pixel Newton it replaces, in one run.
 
 ``python3 -m benchmarks.local_speed [--rounds 7] [--size 1080x1920] [--out DIR]``
+``python3 -m benchmarks.local_speed --batch 16 --size 512x512 [--rounds 5]``
 
 The map is speed.py's ``LocalDeformation`` (edges 1 and 3 of a quad over the
 middle of the frame); calls are interleaved round by round (best of
@@ -17,6 +18,16 @@ evaluations per pixel of the band (the pixels no region takes) with and
 without the pass: the floor is one value-only evaluation per verified pixel.
 
 Writes local_speed.md and .json into DIR (default: benchmarks/results).
+
+``--batch N``: instead, ``warp_batch`` of N images of ``--size``, each
+warped by its own LocalDeformation (uint8 RGB, order 1), on opencl and gl,
+interleaved: the batch with the coarse pass (after) and without (before:
+the backend's COARSE_PASS off during the call), the batch in chunks (opencl)
+or draws (gl) of one image (one records buffer reused image by image, in
+order), and the loop of warp_image. Ratios are to the loop on the same
+backend. Its section of local_speed.md (:data:`BATCH_TITLE` and the
+batch's size) is replaced (or added), the rest kept; its numbers go to
+local_speed_batch_N_HxW.json.
 """
 
 import argparse
@@ -47,6 +58,9 @@ from .common import (
     write_text,
 )
 from .speed import local_deformation, preview_frame
+
+#: The heading of the ``--batch`` sections of local_speed.md (then the batch's size).
+BATCH_TITLE = "## Batches of local deformations"
 
 
 def _bound(transform, image, coarse):
@@ -128,14 +142,114 @@ def run(height, width, rounds):
     return bests(times), evaluations(local, height, width)
 
 
+def _patched(call, module, **values):
+    """``call`` with ``module``'s attributes set to ``values`` during the call."""
+    def run():
+        was = {k: getattr(module, k) for k in values}
+        try:
+            for k, v in values.items():
+                setattr(module, k, v)
+            return call()
+        finally:
+            for k, v in was.items():
+                setattr(module, k, v)
+    return run
+
+
+def run_batch(n, height, width, rounds):
+    """Best seconds of the ``--batch`` calls (see the module docstring)."""
+    from fpiwarp.backends.gl import batch as gl_batch
+    from fpiwarp.backends.opencl import batch as cl_batch
+
+    rng = np.random.default_rng(0)
+    stack = np.stack([test_image(height, width, "uint8", rng) for _ in range(n)])
+    maps = [local_deformation(height, width + 2 * k) for k in range(n)]
+    calls = {}
+    for name, module, one in (("opencl", prepared, (cl_batch, {"ZERO_COPY_CHUNK_BYTES_PER_UNIT": 1})),
+                              ("gl", gl_coarse, (gl_batch, {"SOFTWARE_CHUNK_BYTES": 1, "CHUNK_BYTES": 1}))):
+        def batch(name=name):
+            return fpiwarp.warp_batch(stack, maps, backend=name)
+
+        def loop(name=name):
+            return [fpiwarp.warp_image(im, m, backend=name) for im, m in zip(stack, maps)]
+
+        calls[f"{name} loop of warp_image (coarse pass)"] = loop
+        calls[f"{name} batch, per-pixel Newton (before)"] = _patched(batch, module, COARSE_PASS=False)
+        calls[f"{name} batch, coarse pass (after)"] = _patched(batch, module, COARSE_PASS=True)
+        calls[f"{name} batch, coarse pass, one image per {'chunk' if name == 'opencl' else 'draw'}"] = \
+            _patched(_patched(batch, one[0], **one[1]), module, COARSE_PASS=True)
+    times, results = interleaved(calls, rounds)
+    for name in ("opencl", "gl"):  # the batch is the loop's result, bit for bit
+        assert np.array_equal(np.stack(results[f"{name} loop of warp_image (coarse pass)"]),
+                              results[f"{name} batch, coarse pass (after)"])
+    return bests(times), _images_per_chunk(stack)
+
+
+def _images_per_chunk(stack):
+    """Images per chunk of the default opencl batch (zero copy or
+    pipelined) and per draw of the gl batch (a Newton map's), for ``stack``."""
+    from fpiwarp.backends.gl import batch as gl_batch
+    from fpiwarp.backends.opencl import batch as cl_batch
+
+    be = get_backend("opencl")
+    limit = min(cl_batch.CHUNK_BYTES if be.zero_copy else cl_batch.PIPELINE_CHUNK_BYTES, be.device.max_mem_alloc_size)
+    if be.zero_copy:
+        limit = min(limit, cl_batch.ZERO_COPY_CHUNK_BYTES_PER_UNIT * max(1, be.device.max_compute_units))
+    per_cl = len(range(*cl_batch.chunk_ranges(len(stack), 2 * stack[0].nbytes, limit)[0]))
+    per_gl = gl_batch.images_per_draw(get_backend("gl").warper, stack.shape[1:], stack.shape[1:3], 1, True)
+    return {"opencl": min(per_cl, len(stack)), "gl": min(per_gl, len(stack))}
+
+
+def batch_section(n, height, width, rounds, best, per_chunk, facts, load_end):
+    """The ``--batch`` section of local_speed.md (``per_chunk``: :func:`_images_per_chunk`)."""
+    def ratio(name, seconds):
+        return fmt_ratio(seconds / best[name.split(" ")[0] + " loop of warp_image (coarse pass)"])
+
+    table = markdown_table(["implementation", f"{n} × {width}×{height}"],
+                           [[k, f"{fmt_time(v)} ({ratio(k, v)})"] for k, v in best.items()])
+    return "\n".join([
+        f"{BATCH_TITLE}, {n} × {width}×{height}", "", "`python3 -m benchmarks.local_speed --batch "
+        f"{n} --size {height}x{width} --rounds {rounds}`: warp_batch of {n} uint8 RGB images, each by its own "
+        "LocalDeformation, order 1. Best of "
+        f"{rounds} interleaved rounds; ratios to the loop of warp_image on the same backend. The batch with the "
+        "coarse pass equals the loop bit for bit (checked by the run). By default an opencl chunk holds "
+        f"{per_chunk['opencl']} image(s) here, a gl draw {per_chunk['gl']} (the 'one image per' rows force 1).", "",
+        machine_markdown(facts),
+        f"Load average at the end: {load_end}.", "", table, ""])
+
+
+def write_batch_section(path, section):
+    """Replace the section of local_speed.md with ``section``'s title (its
+    first line, up to the next section) by ``section``, or add it; the rest kept."""
+    text = path.read_text(encoding="utf-8") if path.exists() else ""
+    title = section.split("\n", 1)[0] + "\n"
+    if title in text:
+        start = text.index(title)
+        end = text.find("\n## ", start + len(title))
+        text = text[:start].rstrip("\n") + ("" if end < 0 else "\n" + text[end:])
+    write_text(path, text.rstrip("\n") + "\n\n" + section)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rounds", type=int, default=7)
     ap.add_argument("--size", default="1080x1920")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--batch", type=int, default=0, help="warp_batch of this many images instead (see above)")
     args = ap.parse_args(argv)
     height, width = (int(v) for v in args.size.split("x"))
     facts = machine_facts()
+    if args.batch:
+        best, per_chunk = run_batch(args.batch, height, width, args.rounds)
+        load_end = machine_facts(backends=False)["load_average_1_5_15min"]
+        section = batch_section(args.batch, height, width, args.rounds, best, per_chunk, facts, load_end)
+        out = Path(args.out)
+        write_batch_section(out / "local_speed.md", section)
+        data = {"machine": facts, "load_end": load_end, "images": args.batch, "size": [height, width],
+                "images_per_chunk": per_chunk, "seconds": best}
+        write_json(out / f"local_speed_batch_{args.batch}_{height}x{width}.json", data)
+        print(section)
+        return
     best, evals = run(height, width, args.rounds)
     facts_end = machine_facts(backends=False)
     fpi = {k: best[k] for k in ("opencl FPI", "gl FPI", "gl preview frame FPI")}
@@ -156,7 +270,10 @@ def main(argv=None):
         f"passed by {evals['check_passes']:.2%}), plus {evals['nodes_per_pixel']:.4f} nodes per pixel "
         "solved in full.", ""])
     out = Path(args.out)
+    kept = (out / "local_speed.md").read_text(encoding="utf-8") if (out / "local_speed.md").exists() else ""
     write_text(out / "local_speed.md", md)
+    if BATCH_TITLE in kept:  # the --batch sections stay
+        write_text(out / "local_speed.md", md.rstrip("\n") + "\n\n" + kept[kept.index(BATCH_TITLE):])
     write_json(out / "local_speed.json", {"machine": facts, "load_end": facts_end["load_average_1_5_15min"],
                                           "seconds": best, "evaluations": evals})
     print(md)

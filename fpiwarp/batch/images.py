@@ -157,9 +157,7 @@ def warp_batch(
     array, shape (N, rows, cols) or (N, rows, cols, C)
         The warped stack, of the input's dtype and library (on its
         device), equal bit for bit to the
-        loop of :func:`fpiwarp.warp_image` over the images (within a level
-        for maps with a Newton core on opencl and gl, whose single host
-        warps take the coarse pass: see docs/guides/device_arrays.rst). On a backend
+        loop of :func:`fpiwarp.warp_image` over the images. On a backend
         that batches the stack goes in one call (numpy: one map evaluated
         once for all N images; opencl: one kernel launch per kind of map;
         warp: one launch; gl: one instanced draw per kind of map), in

@@ -14,12 +14,8 @@
 // list in per_draw.glsl.)
 
 // A batch (FPW_BATCH) draws image k at framebuffer rows from fpw_batch.z on
-// (see batch.glsl): its fragments count rows from there.
-#ifdef FPW_BATCH
-#define FPW_FRAG_XY (gl_FragCoord.xy - vec2(0.0, float(fpw_batch.z)))
-#else
-#define FPW_FRAG_XY gl_FragCoord.xy
-#endif
+// (see batch.glsl): its fragments count rows from there (FPW_FRAG_XY,
+// include/block.glsl).
 
 void main() {
 #if defined(FPW_PACK_PIXELS)

@@ -17,6 +17,14 @@ layout(std140) uniform FpiwarpParams {
     vec4 fpw_rows[FPW_MAX_ROWS];
 };
 #endif
+// A fragment's window position counted from its image's first row: a
+// batch (FPW_BATCH) draws image k at framebuffer rows from fpw_batch.z on
+// (see batch.glsl), a single draw from row 0 (fragment stages only).
+#ifdef FPW_BATCH
+#define FPW_FRAG_XY (gl_FragCoord.xy - vec2(0.0, float(fpw_batch.z)))
+#else
+#define FPW_FRAG_XY gl_FragCoord.xy
+#endif
 
 // Row i of the block. In a full-screen pass (fullscreen.vert) specialized
 // to a kind of map, the host defines FPW_HOT_STAGES: the rows read for

@@ -142,23 +142,34 @@ vec2 fpw_seed_corner(vec2 t, int base, vec4 mu12, vec2 mu3, int c) {
 // glsl/backend/coarse.frag). FPW_PIXEL_MAP(xy) is fpw_map(xy) of the
 // fragment's own pixel: under FPW_COARSE it seeds the block's first
 // Newton stage (fpw_seed_pending, read and cleared by that stage, whether
-// a region takes the pixel or not) from its four nodes.
+// a region takes the pixel or not) from its four nodes. A batch
+// (FPW_BATCH) holds image k's ny = fpw_coarse_rows rows of nodes at texel
+// rows [k ny, (k + 1) ny) (fpw_batch.y = k).
 #ifdef FPW_COARSE
 uniform sampler2D fpw_coarse_xa;
 uniform sampler2D fpw_coarse_b;
 uniform ivec2 fpw_coarse_origin;
 bool fpw_seed_pending = false;
 ivec2 fpw_seed_pixel;
+#ifdef FPW_BATCH
+uniform int fpw_coarse_rows;
+#define FPW_COARSE_NODES ivec2(textureSize(fpw_coarse_xa, 0).x, fpw_coarse_rows)
+#define FPW_COARSE_FIRST ivec2(0, fpw_batch.y * fpw_coarse_rows)
+#else
+#define FPW_COARSE_NODES textureSize(fpw_coarse_xa, 0)
+#define FPW_COARSE_FIRST ivec2(0)
+#endif
 
 // coarse.pixel_seeds: the bilinear interpolation of the four nodes' records
 void fpw_coarse_seed(out vec2 x, out vec2 a, out vec2 b) {
-    ivec2 nodes = textureSize(fpw_coarse_xa, 0);
+    ivec2 nodes = FPW_COARSE_NODES;
     ivec2 ij = min(fpw_seed_pixel / FPW_COARSE_STEP, nodes - 2);
     vec2 f = vec2(fpw_seed_pixel - FPW_COARSE_STEP * ij) / float(FPW_COARSE_STEP);
-    vec4 xa00 = texelFetch(fpw_coarse_xa, ij, 0), xa01 = texelFetch(fpw_coarse_xa, ij + ivec2(1, 0), 0);
-    vec4 xa10 = texelFetch(fpw_coarse_xa, ij + ivec2(0, 1), 0), xa11 = texelFetch(fpw_coarse_xa, ij + ivec2(1, 1), 0);
-    vec2 b00 = texelFetch(fpw_coarse_b, ij, 0).xy, b01 = texelFetch(fpw_coarse_b, ij + ivec2(1, 0), 0).xy;
-    vec2 b10 = texelFetch(fpw_coarse_b, ij + ivec2(0, 1), 0).xy, b11 = texelFetch(fpw_coarse_b, ij + ivec2(1, 1), 0).xy;
+    ivec2 at = ij + FPW_COARSE_FIRST;
+    vec4 xa00 = texelFetch(fpw_coarse_xa, at, 0), xa01 = texelFetch(fpw_coarse_xa, at + ivec2(1, 0), 0);
+    vec4 xa10 = texelFetch(fpw_coarse_xa, at + ivec2(0, 1), 0), xa11 = texelFetch(fpw_coarse_xa, at + ivec2(1, 1), 0);
+    vec2 b00 = texelFetch(fpw_coarse_b, at, 0).xy, b01 = texelFetch(fpw_coarse_b, at + ivec2(1, 0), 0).xy;
+    vec2 b10 = texelFetch(fpw_coarse_b, at + ivec2(0, 1), 0).xy, b11 = texelFetch(fpw_coarse_b, at + ivec2(1, 1), 0).xy;
     vec4 xa_bottom = xa00 + f.x * (xa01 - xa00), xa_top = xa10 + f.x * (xa11 - xa10);
     vec4 xa = xa_bottom + f.y * (xa_top - xa_bottom);
     vec2 b_bottom = b00 + f.x * (b01 - b00), b_top = b10 + f.x * (b11 - b10);
@@ -173,7 +184,7 @@ vec2 fpw_map_seeded(vec2 z, ivec2 pixel) {
     fpw_seed_pixel = pixel;
     return fpw_map(z);
 }
-#define FPW_PIXEL_MAP(xy) fpw_map_seeded(xy, ivec2(gl_FragCoord.xy) - fpw_coarse_origin)
+#define FPW_PIXEL_MAP(xy) fpw_map_seeded(xy, ivec2(FPW_FRAG_XY) - fpw_coarse_origin)
 #else
 #define FPW_PIXEL_MAP(xy) fpw_map(xy)
 #endif

@@ -185,7 +185,9 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
  * work-items of each row. */
 /* FW_COARSE (a map with a Newton core, fpiwarp/block/coarse.py): warp_image
  * takes the coarse pass's records (coarse_pass below, nx x ny nodes) and
- * seeds each pixel's Newton from them. */
+ * seeds each pixel's Newton from them. A batch (FW_BATCH) holds the records
+ * of each item of the launch, item z's from node z nx ny on
+ * (FW_COARSE_SELECT). */
 #ifdef FW_COARSE
 #define FW_COARSE_ARGS , __global const float *restrict coarse, int nx, int ny
 #define FW_PIXEL_MAP(block, px, py) fw_map_seeded(block, coarse, nx, ny, px, py)
@@ -193,12 +195,18 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
 #define FW_COARSE_ARGS
 #define FW_PIXEL_MAP(block, px, py) fw_map(block, fw_cx((float)(px), (float)(py)))
 #endif
+#if defined(FW_COARSE) && defined(FW_BATCH)
+#define FW_COARSE_SELECT() (coarse += get_group_id(2) * (size_t)(FW_COARSE_FLOATS * nx * ny))
+#else
+#define FW_COARSE_SELECT()
+#endif
 
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, FW_LOCAL_Y, 1)))
 void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int h,
                 __global FW_T *restrict dst, int ow, int oh, float4 cval FW_COARSE_ARGS FW_BATCH_ARGS)
 {
     FW_BATCH_SELECT(src, dst, w * h * FW_C, ow * oh * FW_C);
+    FW_COARSE_SELECT();
     __local float pos_x[FW_LOCAL_Y * FW_LOCAL_X], pos_y[FW_LOCAL_Y * FW_LOCAL_X];
     int l = get_local_id(0), oy = get_global_id(1);
     int gx0 = get_group_id(0) * FW_LOCAL_X; /* the group's first pixel */
@@ -218,10 +226,16 @@ void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int 
 #ifdef FW_COARSE
 /* The coarse pass: node (i, j)'s record (fw_coarse_node at output position
  * (FW_COARSE_STEP i, FW_COARSE_STEP j)) into coarse, FW_COARSE_FLOATS
- * floats a node, nodes row by row; padding work-items redo the last node. */
+ * floats a node, nodes row by row; padding work-items redo the last node.
+ * A batch (FW_BATCH): item z of launch dimension 2 solves block z's nodes
+ * into its part of coarse (as warp_image reads them). */
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
-void coarse_pass(fw_block_t block, __global float *restrict coarse, int nx, int ny)
+void coarse_pass(fw_block_t block, __global float *restrict coarse, int nx, int ny FW_BATCH_ARGS)
 {
+#ifdef FW_BATCH
+    block += get_group_id(2) * block_rows; /* groups are one item deep, as FW_BATCH_SELECT's */
+#endif
+    FW_COARSE_SELECT();
     int k = min((int)get_global_id(0), nx * ny - 1);
     int i = k % nx, j = k / nx;
     fw_seed_t rec = fw_coarse_node(block, fw_cx((float)(FW_COARSE_STEP * i), (float)(FW_COARSE_STEP * j)));

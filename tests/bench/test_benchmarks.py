@@ -338,3 +338,17 @@ def test_batch_loop_before_is_the_old_selection_and_equal():
     built = batch_loop._BUILT_BEFORE[id(backend)]  # the old programs the --before batch ran
     assert built and all("-DFW_BATCH=1" in options for options in built)
     assert batch_loop.BEFORE in batch_loop.markdown(result)
+
+
+def test_local_speed_batch_section_replaces_only_itself(tmp_path):
+    """local_speed.py --batch rewrites its own section of local_speed.md, the rest kept."""
+    pytest.importorskip("moderngl")
+    from benchmarks import local_speed
+
+    path = tmp_path / "local_speed.md"
+    path.write_text("# The coarse pass\n\nrows\n", encoding="utf-8")
+    a, b = f"{local_speed.BATCH_TITLE}, 2", f"{local_speed.BATCH_TITLE}, 3"
+    local_speed.write_batch_section(path, f"{a}\n\nfirst\n")
+    local_speed.write_batch_section(path, f"{b}\n\nother\n")
+    local_speed.write_batch_section(path, f"{a}\n\nsecond\n")
+    assert path.read_text(encoding="utf-8") == f"# The coarse pass\n\nrows\n\n{b}\n\nother\n\n{a}\n\nsecond\n"

@@ -27,6 +27,24 @@ def make_map(kind, k, w, h):
 KINDS = ["fpi", "fpi_inverse", "shift", "compound", "tps", "tps_inverse"]
 
 
+def local_map(k, w, h):
+    """A LocalDeformation over the middle of a w x h frame (edges 1 and 3
+    held), varied by k: a Newton map whose warps on opencl and gl take the
+    coarse pass (fpiwarp/block/coarse.py)."""
+    sx, sy = w - 1.0, h - 1.0
+    src = np.array([[0.4 * sx, 0.3 * sy], [0.6 * sx, 0.3 * sy], [0.6 * sx, 0.7 * sy], [0.4 * sx, 0.7 * sy]])
+    move = np.array([[0.02, -0.05], [0.03, 0.02], [-0.02, 0.06], [0.01, -0.03]]) * (1 + 0.3 * k)
+    return fpiwarp.LocalDeformation(src, src + move * [sx, sy], edges=(1, 3))
+
+
+def coarse_switch(backend):
+    """The module holding ``backend``'s COARSE_PASS switch ("opencl", "gl")."""
+    import importlib  # noqa: PLC0415
+
+    return importlib.import_module({"opencl": "fpiwarp.backends.opencl.prepared",
+                                    "gl": "fpiwarp.backends.gl.coarse"}[backend])
+
+
 @st.composite
 def batches(draw):
     n = draw(st.integers(1, 4))
@@ -56,40 +74,3 @@ def batches(draw):
 def loop(stack, transforms, backend, options):
     maps = [transforms] * len(stack) if isinstance(transforms, fpiwarp.Transform) else transforms
     return np.stack([fpiwarp.warp_image(im, t, backend=backend, **options) for im, t in zip(stack, maps)])
-
-
-def seeded(transforms, backend, options):
-    """Whether the per-image loop's warps take the coarse pass
-    (fpiwarp/block/coarse.py) where a batch solves per pixel: a map with a
-    Newton core, not antialiased, on opencl or gl (``backend`` None: the
-    default, which may be either). Those agree within a level, not bit for
-    bit."""
-    import importlib  # noqa: PLC0415
-
-    from fpiwarp.block.coarse import newton_stage  # noqa: PLC0415
-    from fpiwarp.block.describe import describe  # noqa: PLC0415
-
-    def coarse_pass_on(name):  # the backend's switch (its module needs the backend's library)
-        module = {"opencl": "fpiwarp.backends.opencl.prepared", "gl": "fpiwarp.backends.gl.coarse"}.get(name)
-        try:
-            return module is not None and importlib.import_module(module).COARSE_PASS
-        except ImportError:
-            return False
-
-    on = coarse_pass_on(backend) if backend is not None else coarse_pass_on("opencl") or coarse_pass_on("gl")
-    if not on or options.get("antialias"):
-        return False
-    maps = [transforms] if isinstance(transforms, fpiwarp.Transform) else transforms
-    return any(newton_stage(describe(np.asarray(t.inverse.params(), np.float32))) is not None for t in maps)
-
-
-def assert_equals_loop(got, expected, is_seeded):
-    """A batch against its per-image loop: bit for bit, or within a level
-    where the loop took the coarse pass (see :func:`seeded`)."""
-    if not is_seeded:
-        np.testing.assert_array_equal(got, expected)
-        return
-    from support.kernel_cases import assert_images_agree  # noqa: PLC0415
-
-    for g, e in zip(got, expected):
-        assert_images_agree(g, e, got.dtype.type)

@@ -25,6 +25,7 @@ import numpy as np
 from ... import glsl
 from ...arrays.kinds import array_info
 from ...errors import ArgumentError, DeviceMismatchError
+from . import coarse
 from .pyramid import PYRAMID_UNIT, build_atlas, set_pyramid_values, upload_atlas
 
 #: Texture dtype -> (image dtype, sampler source kind, fragment output, output scale).
@@ -94,7 +95,7 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
     _, source, output, scale = FORMATS[src.dtype]
     stages = warper.set_map(transform.inverse.params())
     gather = warper.gather and order == 1 and mode in ("constant", "edge", "wrap")
-    flags = ("FPW_ANTIALIAS",) if antialias else ()
+    flags = (("FPW_ANTIALIAS",) if antialias else ()) + coarse.flags(warper.newton_map, antialias)
     key = ProgramKey(FULLSCREEN, glsl.WARP_FRAG, stages=stages, order=order, mode=mode, source=source,
                      gather_channels=c if gather else 0, output=output,
                      flags=flags + (("FPW_OUT_ROUNDED",) if scale != 1.0 else ()))
@@ -121,6 +122,8 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
         src.use(0)
         fbo.viewport = (0, 0, ow, oh)
         fbo.use()
+        if coarse.FLAG in key.flags:  # a Newton map: seeded as the host warp's draw is
+            coarse.prepare(warper, prog, stages, (0.0, 0.0, 1.0, 1.0), (0, 0, ow, oh))
         warper.fullscreen_vao(prog).render(moderngl.TRIANGLES, vertices=3)
     finally:
         src.filter, src.repeat_x, src.repeat_y = saved

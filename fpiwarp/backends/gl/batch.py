@@ -23,13 +23,21 @@ Outputs wider than the size limit are drawn in column tiles, as for one
 image. Sources beyond the size limit (the single-image path
 tiles those) and drivers without shader storage buffers go image by
 image.
+
+Maps with a Newton core take the coarse pass as their single warps do
+(:mod:`.coarse`): before each draw (and column tile) one instanced draw
+solves the nodes of all its images, image k's from block k, and the
+warp's instance k seeds its pixels from them; the maps are grouped by
+whether they have a Newton core (without specializing too).
 """
 
 import moderngl
 import numpy as np
 
 from ...block import describe
+from ...block.coarse import coarse_shape, newton_stage
 from ...block.many import BlockStack
+from . import coarse
 from .context import bound_framebuffer, software_rasterizer
 from .programs import MAX_ROWS, set_uniform
 from .tiling import SOURCE_TEXTURE_DTYPES, tiles
@@ -55,29 +63,45 @@ def supports_batches(ctx):
             and (info.get("GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS") or 0) > 0)
 
 
-def kind_groups(stack, n, specialize):
-    """[(stages, is_short, indices of the images, whether each has its own
-    block)]: the images grouped by the kind of their map (one group when
-    not specializing, or for one map shared by all ``n`` images).
+def kind_groups(stack, n, specialize, by_newton=False):
+    """[(stages, is_short, has a Newton core, indices of the images,
+    whether each has its own block)]: the images grouped by the kind of
+    their map (when not specializing: one group, or by whether the map has
+    a Newton core where ``by_newton``, else that is None; one group for
+    one map shared by all ``n`` images).
     ``stack``: a :class:`~fpiwarp.block.many.BlockStack`, each distinct kind
     described once."""
-    def key(kind):  # (each stage's core and region count, short map) when specializing
+    def key(kind):  # (each stage's core and region count, short map, Newton) when specializing
         return (tuple((s.core, s.n_regions) for s in kind.stages) if specialize else None,
-                specialize and kind.is_short)
+                specialize and kind.is_short, newton_stage(kind) is not None if specialize or by_newton else None)
 
     if len(stack) == 1:
         return [(*key(describe(stack.array[0, : stack.rows[0]])), np.arange(n), False)]
-    return [(stages, short, idx.astype(np.intp), True) for (stages, short), idx in stack.groups(key)]
+    return [(*k, idx.astype(np.intp), True) for k, idx in stack.groups(key)]
 
 
-def images_per_draw(warper, image_shape, output_shape, itemsize):
-    """How many images one draw holds (>= 1; see the module's docstring)."""
+def batch_program(warper, key):
+    """The program of ``key`` compiled for batches (FPW_BATCH), its blocks'
+    storage buffer at :data:`BATCH_BINDING`."""
+    prog = warper.program(key.with_changes(flags=key.flags + ("FPW_BATCH",)))
+    storage = prog.get("FpiwarpBatch", None)
+    if storage is not None:
+        storage.binding = BATCH_BINDING
+    return prog
+
+
+def images_per_draw(warper, image_shape, output_shape, itemsize, seeded=False):
+    """How many images one draw holds (>= 1; see the module's docstring);
+    ``seeded``: the draw takes the coarse pass (its nodes' targets are
+    within the size limit too)."""
     (h, w, _), (oh, ow) = image_shape, output_shape
     info = warper.ctx.info
     per_image = (h * w + oh * ow) * 4 * itemsize
     chunk = SOFTWARE_CHUNK_BYTES if software_rasterizer(warper.ctx) else CHUNK_BYTES
     limits = [warper.max_size // oh, info.get("GL_MAX_ARRAY_TEXTURE_LAYERS") or 256, chunk // per_image,
               (info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 1 << 24) // (MAX_ROWS * 16)]
+    if seeded:
+        limits.append(warper.max_size // coarse_shape(min(ow, warper.max_size), oh)[0])
     return max(1, min(limits))
 
 
@@ -103,20 +127,18 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
     if warper.targets.owns(caller):  # never leave a cached target bound (see GLWarper)
         caller = warper.targets.dummy
     try:
-        per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize)
-        for stages, short, idx, own in kind_groups(stack_of_blocks, n, warper.specialize):
-            warper.short_map = short
-            key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias)
-            prog = warper.program(key.with_changes(flags=key.flags + ("FPW_BATCH",)))
-            storage = prog.get("FpiwarpBatch", None)
-            if storage is not None:
-                storage.binding = BATCH_BINDING
+        for stages, short, newton, idx, own in kind_groups(stack_of_blocks, n, warper.specialize, by_newton=True):
+            warper.short_map, warper.newton_map = short, newton  # as set_map sets them for one of the maps
+            key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=True)
+            prog = batch_program(warper, key)
+            nodes = (batch_program(warper, coarse.node_key(stages)), stages) if coarse.FLAG in key.flags else None
             set_sampling_values(prog, stack, (oh, ow), cval, own)
+            per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize, nodes is not None)
             draws = -(-len(idx) // per_draw)
             size = -(-len(idx) // draws)  # draws of equal size: one texture and target for all
             for a in range(0, len(idx), size):
                 draw_group(warper, prog, stack, stack_of_blocks.array, idx[a:a + size], out, mode, packs, own,
-                           size)
+                           size, nodes)
     finally:
         warper.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
         caller.use()
@@ -134,11 +156,13 @@ def set_sampling_values(prog, stack, output_shape, cval, own):
     set_uniform(prog, "fpw_batch_step", 1 if own else 0)
 
 
-def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own, size):
+def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own, size, nodes=None):
     """One instanced draw: images ``idx`` of ``stack`` into ``out[idx]``
     (``blocks``: the (N or 1, rows, 4) stacked blocks),
     in a texture array and a target for ``size`` images (several draws
-    only where the output is wider than the size limit)."""
+    only where the output is wider than the size limit). ``nodes``: (the
+    nodes' batch program, the kind's stages) of a draw taking the coarse
+    pass, each draw then preceded by its nodes' (:func:`.coarse.seeded_draw`)."""
     _, h, w, c = stack.shape
     m, (oh, ow) = len(idx), out.shape[1:3]
     targets = warper.targets
@@ -162,6 +186,8 @@ def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own, size):
 
     def draw():
         vao.render(moderngl.TRIANGLES, vertices=6, instances=m)
+    if nodes is not None:
+        draw = coarse.seeded_draw(warper, prog, nodes[1], draw, (nodes[0], m, 1 if own else 0))
 
     full = (min(ow, warper.max_size), size * oh)
     for x0, x1 in tiles(ow, warper.max_size):

@@ -48,7 +48,7 @@ def map_points_batch(warper, blocks, points):
     warper.targets.dummy.use()  # without a bound framebuffer (surfaceless EGL) nothing is captured
     try:
         per = sets_per_pass(warper, p)
-        for stages, _, idx, own in kind_groups(stack, n, warper.specialize):
+        for stages, _, _, idx, own in kind_groups(stack, n, warper.specialize):
             prog = warper.program(ProgramKey(glsl.MAP_POINTS_VERT, stages=stages, varyings=("fpw_mapped",),
                                              flags=("FPW_BATCH",)))
             storage = prog.get("FpiwarpBatch", None)

@@ -9,7 +9,10 @@ binds them for the draw (texture units :data:`UNITS`). Each fragment of
 the draw then seeds the block's first Newton stage from its four nodes.
 A warp_image output of one tile has the reference's nodes exactly; a
 tiled output's nodes start again at each tile's corner (tiles are the
-driver's size limit apart). Batches and antialiased programs solve per
+driver's size limit apart). A batch's instanced draw (:mod:`.batch`) is
+preceded by one instanced draw of the nodes of all its images (image k's
+in texel rows [k ny, (k + 1) ny) of targets ny times as tall), so each
+image is seeded as its single warp is. Antialiased programs solve per
 pixel, as the OpenCL backend does.
 """
 
@@ -35,23 +38,37 @@ def flags(newton_map, antialias=False):
     return (FLAG,) if COARSE_PASS and newton_map and not antialias else ()
 
 
-def prepare(warper, prog, stages, view, viewport):
+def node_key(stages):
+    """The program key of the nodes' pass for a block of kind ``stages``."""
+    return ProgramKey(FULLSCREEN, glsl.COARSE_FRAG, stages=stages, samples=False, flags=("FPW_COARSE_PASS",))
+
+
+def prepare(warper, prog, stages, view, viewport, batch=None):
     """Render the nodes of a draw by ``prog`` (a program with FLAG) over
     ``viewport`` (x, y, w, h window pixels) with ``fpw_view`` ``view``, for
     a block of kind ``stages`` uploaded to ``warper``; bind them for the
-    draw. The caller's framebuffer and viewport are bound again after."""
+    draw. The caller's framebuffer and viewport are bound again after.
+    ``batch``: (the nodes' program compiled for batches, the draw's image
+    count, its block step) of an instanced batch draw (:mod:`.batch`)
+    whose images are ``viewport``'s size each, blocks in its storage buffer."""
     ctx = warper.ctx
     x0, y0, w, h = (int(v) for v in viewport)
     ny, nx = coarse_shape(w, h)
+    node, count, step = batch or (warper.program(node_key(stages)), 1, 0)
     caller, caller_viewport = bound_framebuffer(ctx), ctx.viewport
-    fbo = warper.targets.cached("coarse", (nx, ny), lambda: ctx.framebuffer(
-        color_attachments=[ctx.texture((nx, ny), 4, dtype="f4") for _ in UNITS]))
-    node = warper.program(ProgramKey(FULLSCREEN, glsl.COARSE_FRAG, stages=stages, samples=False,
-                                     flags=("FPW_COARSE_PASS",)))
+    fbo = warper.targets.cached("coarse", (nx, ny * count), lambda: ctx.framebuffer(
+        color_attachments=[ctx.texture((nx, ny * count), 4, dtype="f4") for _ in UNITS]))
     vx, vy, vz, vw = (float(v) for v in view)
     set_uniform(node, "fpw_view", (vx + vz * x0, vy + vw * y0, vz, vw))
-    fbo.use()  # its viewport: (0, 0, nx, ny)
-    warper.fullscreen_vao(node).render(moderngl.TRIANGLES, vertices=3)
+    fbo.use()  # its viewport: (0, 0, nx, ny * count)
+    if batch is None:
+        warper.fullscreen_vao(node).render(moderngl.TRIANGLES, vertices=3)
+    else:  # instance k: image k's rows of nodes, block k * step (fullscreen.vert)
+        set_uniform(node, "fpw_batch_rows", ny)
+        set_uniform(node, "fpw_batch_count", count)
+        set_uniform(node, "fpw_batch_step", step)
+        set_uniform(prog, "fpw_coarse_rows", ny)
+        warper.fullscreen_vao(node).render(moderngl.TRIANGLES, vertices=6, instances=count)
     caller.use()
     ctx.viewport = caller_viewport
     for unit, tex in zip(UNITS, fbo.color_attachments):
@@ -61,11 +78,13 @@ def prepare(warper, prog, stages, view, viewport):
     set_uniform(prog, "fpw_coarse_origin", (x0, y0))
 
 
-def seeded_draw(warper, prog, stages, draw):
+def seeded_draw(warper, prog, stages, draw, batch=None):
     """``draw`` (a warp_image tile's draw by ``prog``) preceded by the
     coarse pass of the tile: its view read back from ``prog``, its size the
-    viewport the caller set."""
+    viewport the caller set (``batch``, as :func:`prepare` takes it: the
+    viewport holds its images one above the other)."""
     def run():
-        prepare(warper, prog, stages, prog["fpw_view"].value, (0, 0) + tuple(warper.ctx.viewport[2:]))
+        w, h = warper.ctx.viewport[2:]
+        prepare(warper, prog, stages, prog["fpw_view"].value, (0, 0, w, h // (batch[1] if batch else 1)), batch)
         draw()
     return run

@@ -430,11 +430,12 @@ class GLWarper:
         set_pyramid_values(prog, rects)
 
     # ---- for batches (fpiwarp.backends.gl.batch)
-    def warp_program_key(self, image, order, mode, stages, antialias=False):
+    def warp_program_key(self, image, order, mode, stages, antialias=False, seeded=False):
         """(key, packs) of the per-pixel warp program that :meth:`warp_block`
         uses for an untiled ``image`` with software sampling, after
-        :meth:`set_map` (or ``short_map`` set) for a block of kind ``stages``."""
-        key, _, packs = self._program_keys(image, order, mode, None, False, False, stages, antialias, seeded=False)
+        :meth:`set_map` (or ``short_map`` and ``newton_map`` set) for a block
+        of kind ``stages``; ``seeded``: with the coarse pass where it takes it."""
+        key, _, packs = self._program_keys(image, order, mode, None, False, False, stages, antialias, seeded=seeded)
         return key, packs
 
     def draw_tile(self, image, out, prog, draw, box, packs=False, full=None):

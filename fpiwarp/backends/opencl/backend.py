@@ -40,7 +40,16 @@ from ...errors import BackendUnavailableError, SizeLimitError
 from ...sampling.pyramid import SourcePyramids
 from ..lru import LruCache
 from . import build_cache
-from .prepared import IMAGE_SLACK, ZERO_COPY_MIN_BYTES, BoundMap, JobCache
+from .prepared import (
+    COARSE_OPTION,
+    IMAGE_SLACK,
+    ZERO_COPY_MIN_BYTES,
+    BoundMap,
+    JobCache,
+    nodes_global,
+    records_bytes,
+    takes_coarse,
+)
 from .pyramid import DevicePyramid
 from .tiles import global_size, tiled_program
 
@@ -498,6 +507,7 @@ class DeviceWarp:
         else:
             self._dst = be._buffer("image_out", self.out.nbytes)
         self._kernel = None
+        self._coarse = None  # a Newton map's coarse pass (set_map), enqueued before the warp
 
     def set_map(self, transform):
         """Upload the parameter block of ``transform.inverse`` (the map
@@ -506,9 +516,20 @@ class DeviceWarp:
         (h, w, _), (oh, ow) = self.image_shape, self.output_shape
         block, kind = be._upload_block(transform.inverse)
         name, options, self.local = tiled_program(be, *self._sampling, kind)
+        coarse = takes_coarse(kind, self._pyramid is not None)
+        if coarse:  # as the host warp's job (prepared.ClJob)
+            options = (*options, COARSE_OPTION)
         kern = be.kernel(name, options)
         self._options = options
         extra = self._pyramid.args() if self._pyramid is not None else ()
+        self._coarse = None
+        if coarse:
+            size, (nx, ny) = records_bytes((oh, ow))
+            records = be._buffer("coarse", size)
+            self._coarse = be.kernel("coarse_pass", options)  # of warp_image's program
+            self._coarse.set_args(block, records, np.int32(nx), np.int32(ny))
+            self._coarse_global = (nodes_global(self.local[0], nx, ny),)
+            extra = (records, np.int32(nx), np.int32(ny))
         kern.set_args(block, self._src, np.int32(w), np.int32(h), self._dst, np.int32(ow), np.int32(oh), self._cval4,
                       *extra)
         self._kernel = kern
@@ -522,6 +543,8 @@ class DeviceWarp:
             pyramid.reset()
             pyramid.build(self._options, self._src)
             self._kernel.set_arg(11, np.int32(pyramid.built))
+        if self._coarse is not None:  # the queue is in order: the records are written before the warp reads them
+            be._cl.enqueue_nd_range_kernel(be.queue, self._coarse, self._coarse_global, (self.local[0],))
         return be._cl.enqueue_nd_range_kernel(be.queue, self._kernel, global_size(self.local, self.output_shape),
                                               self.local)
 

@@ -7,6 +7,16 @@ parameter blocks and image ``which[z]`` of a stacked source and output
 code, so a batch equals the loop of :meth:`Backend.warp_image` bit for
 bit.
 
+Newton maps
+-----------
+A map with a Newton core takes the coarse pass as its single warp does
+(:class:`.prepared.ClJob`, fpiwarp/block/coarse.py): each launch of such
+maps is preceded by one ``coarse_pass`` launch over the nodes of all its
+images (launch dimension 2 again), into one records buffer kept across
+batches, item z's records from node z nx ny on, which warp_image's item z
+reads. The backend's queue is in order: the records are written before
+the warp reads them and rewritten only after.
+
 Kinds of map
 ------------
 A program is specialised for one kind of map (:func:`kind_options`), so
@@ -51,6 +61,7 @@ import numpy as np
 
 from ...block import describe
 from ...block.many import BlockStack, inverses
+from .prepared import COARSE_OPTION, nodes_global, records_bytes, takes_coarse
 from .pyramid import DevicePyramid
 from .tiles import global_size, tiled_program
 
@@ -178,14 +189,31 @@ class BatchLaunch:
         sizes = (np.int32(self.w), np.int32(self.h), dst, np.int32(self.ow), np.int32(self.oh), self.cval4)
         for kind, rows, blocks, which in _launches(be, self.groups, a, b):
             name, options, local = tiled_program(be, *self.sampling, kind)  # the single warp's tiles
+            coarse = takes_coarse(kind, self.antialias)
+            if coarse:  # as the single warp's job (prepared.ClJob)
+                options = (*options, COARSE_OPTION)
             kern = be.kernel(name, (*options, "-DFW_BATCH=1"))
             extra = self._pyramid_args(queue, src, options, a, b, wait_for) if self.antialias else ()
             self.keep.append((_small_buffer(cl, be.context, blocks), _small_buffer(cl, be.context, which)))
+            if coarse:
+                node = be.kernel("coarse_pass", (*options, "-DFW_BATCH=1"))  # of warp_image's program
+                extra = self._coarse_pass(queue, node, *self.keep[-1], rows, len(which), local[0])
             kern.set_args(self.keep[-1][0], src, *sizes, *extra, self.keep[-1][1], np.int32(rows))
             events.append(cl.enqueue_nd_range_kernel(queue, kern, (*global_size(local, (self.oh, self.ow)), len(which)),
                                                      (*local, 1), wait_for=wait_for))
         return events
 
+    def _coarse_pass(self, queue, node, blocks, which, rows, count, local_x):
+        """Enqueue the coarse pass (kernel ``node``) of a launch's ``count`` maps (their
+        ``blocks`` buffer, ``rows`` rows each) into one kept records buffer,
+        item z's records from node z nx ny on; warp_image's records
+        arguments. The queue is in order: the records are written before
+        the launch's warp reads them, and after the last one read them."""
+        size, (nx, ny) = records_bytes((self.oh, self.ow), count)
+        records = kept_buffer(self.backend, "coarse", size, self.cl.mem_flags.READ_WRITE)
+        node.set_args(blocks, records, np.int32(nx), np.int32(ny), which, np.int32(rows))
+        self.cl.enqueue_nd_range_kernel(queue, node, (nodes_global(local_x, nx, ny), 1, count), (local_x, 1, 1))
+        return records, np.int32(nx), np.int32(ny)
 
     def _pyramid_args(self, queue, src, options, a, b, wait_for):
         """The pyramid arguments of images [a, b) in ``src``, their levels

@@ -37,9 +37,13 @@ IMAGE_SLACK = 4
 #: a millisecond of driver set-up per call on PoCL, more than the copy.
 ZERO_COPY_MIN_BYTES = 1 << 20
 #: A Newton map's warp runs the coarse pass (fpiwarp/block/coarse.py) first;
-#: False: each pixel solves alone (read when a job is made: benchmarks
-#: compare the two, benchmarks/local_speed.py).
+#: False: each pixel solves alone (read when a job is made, a batch
+#: launched or a device warp's map set: benchmarks compare the two,
+#: benchmarks/local_speed.py).
 COARSE_PASS = True
+#: The build option of a warp taking the coarse pass (warp_image then
+#: reads the records coarse_pass writes: kernels/opencl/fpiwarp.cl).
+COARSE_OPTION = "-DFW_COARSE=1"
 #: The index of warp_image_aa's first pyramid argument (after cval).
 PYRAMID_ARG = 8
 #: Jobs kept per backend (plain calls) and per bound map, least recently used dropped.
@@ -50,6 +54,25 @@ def job_key(image, output_shape, order, mode, cval, antialias, kind):
     """What a job is made for; calls with equal keys share it."""
     return (image.shape, image.dtype.str, tuple(output_shape), int(order), mode,
             tuple(float(v) for v in cval), bool(antialias), kind)
+
+
+def takes_coarse(kind, antialias):
+    """Whether a warp of a map of ``kind`` (``kind_options``) takes the
+    coarse pass: a Newton map, not antialiased, while COARSE_PASS (read at
+    each call: benchmarks toggle it)."""
+    return COARSE_PASS and not antialias and has_newton(kind)
+
+
+def records_bytes(output_shape, count=1):
+    """Bytes of the coarse pass's records of ``count`` warps to
+    ``output_shape`` (rows, cols), and the nodes (nx, ny) of one."""
+    ny, nx = coarse_shape(output_shape[1], output_shape[0])
+    return 4 * COARSE_FLOATS * nx * ny * count, (nx, ny)
+
+
+def nodes_global(local_x, nx, ny):
+    """coarse_pass's global size over nx x ny nodes: whole groups of ``local_x``."""
+    return -(-nx * ny // local_x) * local_x
 
 
 class JobCache(LruCache):
@@ -78,8 +101,8 @@ class ClJob:
         name, options, self._local = tiled_program(be, image.dtype, c, order, mode, ow, antialias, kind)
         #: a Newton map's coarse pass (fpiwarp/block/coarse.py): its kernel, the records' buffer
         self._coarse = None
-        if COARSE_PASS and not antialias and has_newton(kind):
-            options = (*options, "-DFW_COARSE=1")
+        if takes_coarse(kind, antialias):
+            options = (*options, COARSE_OPTION)
         program = be.kernel(name, options).program
         self._kernel = cl.Kernel(program, name)  # its own: arguments stay set between calls
         self._global = global_size(self._local, (oh, ow))
@@ -105,12 +128,12 @@ class ClJob:
         self._pyramid_set = (lambda: None, 0)
         if antialias:
             args += [None, None, np.int32(0), np.int32(0), np.int32(1), None]
-        if "-DFW_COARSE=1" in options:
-            ny, nx = coarse_shape(ow, oh)
-            self._records = cl.Buffer(be.context, mf.READ_WRITE, 4 * COARSE_FLOATS * nx * ny)
+        if COARSE_OPTION in options:
+            size, (nx, ny) = records_bytes((oh, ow))
+            self._records = cl.Buffer(be.context, mf.READ_WRITE, size)
             self._coarse = cl.Kernel(program, "coarse_pass")
             self._coarse.set_args(None, self._records, np.int32(nx), np.int32(ny))
-            self._coarse_global = (-(-nx * ny // self._local[0]) * self._local[0],)
+            self._coarse_global = (nodes_global(self._local[0], nx, ny),)
             args += [self._records, np.int32(nx), np.int32(ny)]
         self._kernel.set_args(*args)
 

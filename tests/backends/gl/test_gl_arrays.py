@@ -57,6 +57,15 @@ def test_textures_equal_the_numpy_path(ctx, rng, monkeypatch, dtype, channels, o
     assert (tex.filter, tex.repeat_x, tex.repeat_y) == state  # the caller's sampling state is given back
 
 
+def test_newton_maps_take_the_coarse_pass_as_host_images_do(ctx, rng):
+    from support.batch_cases import local_map
+
+    img = make_image(rng, (40, 70, 4), np.uint8)
+    local = local_map(1, 70, 40)
+    res = fpiwarp.warp_image(texture(ctx, img), local)
+    np.testing.assert_array_equal(read(res, np.uint8), fpiwarp.warp_image(img, local, backend="gl"))
+
+
 def test_out_texture_and_errors(ctx, rng):
     img = make_image(rng, (24, 32, 4), np.uint8)
     tex = texture(ctx, img)

@@ -24,8 +24,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from support.batch_cases import seeded
-from support.kernel_cases import assert_images_agree, make_image, region_map, tps_map
+from support.kernel_cases import assert_images_agree, make_image, region_map, takes_coarse_pass, tps_map
 
 import fpiwarp
 from fpiwarp import FPI, RLinear
@@ -142,7 +141,7 @@ def test_tiles_and_the_interior_path_give_the_one_row_general_output_bit_for_bit
             np.testing.assert_array_equal(run_kernel(image, transform, shape, order, mode, cval, tile=tile,
                                                      lanes=16), general)
     got = fpiwarp.warp_image(image, transform, shape, order=order, mode=mode, cval=cval, backend="opencl")
-    if seeded(transform, "opencl", {}):  # the coarse pass: nearer positions than a per-pixel solve
+    if takes_coarse_pass(transform, "opencl"):  # the coarse pass: nearer positions than a per-pixel solve
         assert_images_agree(got, general, image.dtype.type)
     else:
         np.testing.assert_array_equal(got, general)
