@@ -39,13 +39,26 @@ def _device_key(backend):
     if key is None:
         import pyopencl  # noqa: PLC0415
 
-        device = backend.device
-        platform = device.platform
-        parts = [device.name, device.vendor, device.driver_version, device.version, platform.name,
-                 platform.version, pyopencl.VERSION_TEXT, backend._source]
+        parts = [*_device_parts(backend), pyopencl.VERSION_TEXT, backend._source]
         key = hashlib.sha256("\0".join(str(p) for p in parts).encode()).digest()
         backend._binary_key = key
     return key
+
+
+def _device_parts(backend):
+    """The device, its driver and its platform (names and versions)."""
+    device = backend.device
+    platform = device.platform
+    return [device.name, device.vendor, device.driver_version, device.version, platform.name, platform.version]
+
+
+def device_path(backend, name):
+    """A file of measurements called ``name`` for ``backend``'s device and
+    driver, whatever the kernels' source (a measured choice that gives the
+    same outputs in every case, like the tile, outlives a change of the
+    kernels)."""
+    h = hashlib.sha256("\0".join(str(p) for p in _device_parts(backend)).encode())
+    return _folder() / f"{h.hexdigest()[:32]}.{name}.json"
 
 
 def path(backend, options):

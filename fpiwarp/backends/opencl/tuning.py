@@ -12,8 +12,9 @@ chosen on an AVX2 machine. So the tile is a per-device choice:
 * :func:`tile_for` gives the backend's tile: the one measured for its
   device (kept in memory and on disk beside the OpenCL binaries, in the
   user's cache folder, keyed by the device's name, driver and platform
-  versions, pyopencl's version and the kernels' source), else
-  :data:`DEFAULT_TILE`.
+  versions; not by the kernels' source, so that a new version of the
+  kernels keeps the measured tile: every tile gives the same output, and
+  :func:`tune` measures again), else :data:`DEFAULT_TILE`.
 * :func:`tune` measures :data:`CANDIDATES` on a 1024 x 1024 RGB uint8
   FPI warp (a warm-up call that builds each, then best of a few
   interleaved rounds) and stores the winner. The fast default's
@@ -62,7 +63,7 @@ TUNING_SHAPE, TUNING_ROUNDS = (1024, 1024, 3), 5
 
 
 def _path(backend):
-    return build_cache.path(backend, ("tile",)).with_suffix(".tile.json")
+    return build_cache.device_path(backend, "tile")
 
 
 def _fixed():
