@@ -101,23 +101,28 @@ vec2 fpw_seed_node(int base, int k) {
     return (k % 2) == 0 ? r.xy : r.zw;
 }
 
-vec2 fpw_seed_correction(vec2 t, int base) {
-    vec4 box = fpw_rows[base + FPW_ROW_SEED];
+// the seed table's cell of t (its box: lo, g): the clamped node
+// coordinate f (NaN: 0), its cell (i, j) and the fractions f - (i, j)
+ivec2 fpw_seed_cell(vec2 t, vec4 box, out vec2 frac) {
     vec2 f = (t - box.xy) * box.zw;
     f.x = f.x > 0.0 ? min(f.x, float(FPW_SEED_N - 1)) : 0.0;
     f.y = f.y > 0.0 ? min(f.y, float(FPW_SEED_N - 1)) : 0.0;
-    int i = min(int(f.x), FPW_SEED_N - 2);
-    int j = min(int(f.y), FPW_SEED_N - 2);
-    float tx = f.x - float(i);
-    float ty = f.y - float(j);
-    int k = j * FPW_SEED_N + i;
+    ivec2 ij = ivec2(min(int(f.x), FPW_SEED_N - 2), min(int(f.y), FPW_SEED_N - 2));
+    frac = vec2(f.x - float(ij.x), f.y - float(ij.y));
+    return ij;
+}
+
+vec2 fpw_seed_correction(vec2 t, int base) {
+    vec2 frac;
+    ivec2 ij = fpw_seed_cell(t, fpw_rows[base + FPW_ROW_SEED], frac);
+    int k = ij.y * FPW_SEED_N + ij.x;
     vec2 c00 = fpw_seed_node(base, k);
     vec2 c01 = fpw_seed_node(base, k + 1);
     vec2 c10 = fpw_seed_node(base, k + FPW_SEED_N);
     vec2 c11 = fpw_seed_node(base, k + FPW_SEED_N + 1);
-    vec2 bottom = c00 + (c01 - c00) * tx;
-    vec2 top = c10 + (c11 - c10) * tx;
-    return bottom + (top - bottom) * ty;
+    vec2 bottom = c00 + (c01 - c00) * frac.x;
+    vec2 top = c10 + (c11 - c10) * frac.x;
+    return bottom + (top - bottom) * frac.y;
 }
 
 // reference.seed_corner: the preimage the seed table holds at corner c
@@ -125,11 +130,10 @@ vec2 fpw_seed_correction(vec2 t, int base) {
 // t's cell, the R-linear inverse of the node plus its correction.
 vec2 fpw_seed_corner(vec2 t, int base, vec4 mu12, vec2 mu3, int c) {
     vec4 box = fpw_rows[base + FPW_ROW_SEED];
-    vec2 f = (t - box.xy) * box.zw;
-    f.x = f.x > 0.0 ? min(f.x, float(FPW_SEED_N - 1)) : 0.0;
-    f.y = f.y > 0.0 ? min(f.y, float(FPW_SEED_N - 1)) : 0.0;
-    int i = min(int(f.x), FPW_SEED_N - 2) + c % 2;
-    int j = min(int(f.y), FPW_SEED_N - 2) + c / 2;
+    vec2 frac;
+    ivec2 ij = fpw_seed_cell(t, box, frac);
+    int i = ij.x + c % 2;
+    int j = ij.y + c / 2;
     vec2 node = vec2(box.x + float(i) / box.z, box.y + float(j) / box.w);
     return fpw_cmul(mu12.xy, node) + fpw_cmul(mu12.zw, fpw_conj(node)) + mu3 + fpw_seed_node(base, j * FPW_SEED_N + i);
 }
