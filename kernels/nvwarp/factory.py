@@ -27,7 +27,12 @@ antialiased kernels only (plain ones get a placeholder). Rows [k·oh, (k + 1)·o
 one each), so that bands of rows split a batch like one tall image. With
 ``rows`` a thread runs along one output row (Warp's CPU device: the
 index arithmetic of the batch and the kernel's arguments are paid once a
-row, not once a pixel), else a thread is one pixel (CUDA).
+row, not once a pixel), else a thread is one pixel (CUDA). A plain row
+kernel takes its row in chunks of :data:`ROW_CHUNK` pixels: the map over
+a chunk into two local arrays first, in a loop that neither reads the
+image nor writes a pixel, which the C++ compiler vectorizes across pixels
+(16 lanes with AVX-512; the one loop of map, sampler and store it did
+not), then each pixel of the chunk sampled and written.
 """
 
 import hashlib
@@ -42,6 +47,10 @@ from .stage import then_stage, walk
 
 _cache = {}
 _lock = threading.Lock()
+
+#: Pixels of a row whose map a row kernel (Warp's CPU device) evaluates in
+#: one vectorized loop before it samples them (measured: 8 and 16 slower, 64 no faster).
+ROW_CHUNK = 32
 
 #: The numpy dtypes of images the kernels read and write, with their top value
 #: (integer outputs are rounded and clipped to [0, top]; 0: float, not clipped).
@@ -145,6 +154,21 @@ def _make_image_kernel(spec):
     STRIDED, ROWS, AA = spec.strided, spec.rows, spec.antialias
     Stack = wp.array4d(dtype=T) if STRIDED else wp.array3d(dtype=T)
     label = f"image_{spec.dtype}_o{ORDER}_m{MODE}_c{CHANNELS}{'_aa' if AA else ''}{'_rows' if ROWS else ''}"
+    CHUNK = ROW_CHUNK if ROWS and not AA else 0
+    mname = _module_name(label, spec)
+
+    @wp.func(module=mname)
+    def map_at(blk: wp.array(dtype=wp.vec4), z: wp.vec2):
+        """The map of this kernel's kind at z: (w, f_z, f_zbar) of the stage walk."""
+        if wp.static(KIND is None):
+            return walk(blk, z, wp.static(AA))
+        s = z
+        dz = wp.vec2(1.0, 0.0)
+        dzb = wp.vec2(0.0, 0.0)
+        for i in range(wp.static(len(KIND or ()))):
+            s, dz, dzb = then_stage(blk, i, s, dz, dzb, wp.static(KIND[i][0]), wp.static(KIND[i][1]),
+                                    wp.static(AA))
+        return s, dz, dzb
 
     def warp_image(
         blks: wp.array2d(dtype=wp.vec4),
@@ -196,17 +220,34 @@ def _make_image_kernel(spec):
             channels = wp.static(CHANNELS)
         oy = dst0 + y
         x = x_first
+        if wp.static(CHUNK > 0):
+            # Warp's CPU device: the row in chunks, the map over a chunk into
+            # local arrays first (a loop without image reads or stores, which
+            # the C++ compiler vectorizes across pixels), then each pixel
+            # sampled and written; the same arithmetic per pixel as the loop below
+            fy = float(y)
+            while x < x_last:
+                sx = wp.vector(dtype=float, length=wp.static(CHUNK))
+                sy = wp.vector(dtype=float, length=wp.static(CHUNK))
+                count = wp.min(wp.static(CHUNK), x_last - x)
+                i = wp.int32(0)
+                while i < count:
+                    si, dzi, dzbi = map_at(blk, wp.vec2(float(x + i), fy))
+                    sx[i] = si[0]
+                    sy[i] = si[1]
+                    i = i + 1
+                i = wp.int32(0)
+                while i < count:
+                    si = wp.vec2(sx[i], sy[i])
+                    vi = cval
+                    if in_range(si):
+                        vi = sample(src, src0, h, src.shape[1], si, order, mode, cval, channels)
+                    store_pixel(dst, oy, x + i, vi, channels, wp.static(TOP))
+                    i = i + 1
+                x = x + count
         while x < x_last:  # (a while loop: Warp's range loop carries a step sign through every iteration)
             z = wp.vec2(float(x), float(y))
-            if wp.static(KIND is None):
-                s, dz, dzb = walk(blk, z, wp.static(AA))
-            else:
-                s = z
-                dz = wp.vec2(1.0, 0.0)
-                dzb = wp.vec2(0.0, 0.0)
-                for i in range(wp.static(len(KIND))):
-                    s, dz, dzb = then_stage(blk, i, s, dz, dzb, wp.static(KIND[i][0]), wp.static(KIND[i][1]),
-                                            wp.static(AA))
+            s, dz, dzb = map_at(blk, z)
             v = cval
             if in_range(s):
                 if wp.static(AA):
@@ -217,7 +258,7 @@ def _make_image_kernel(spec):
             x = x + 1
 
     warp_image.__name__ = warp_image.__qualname__ = label
-    return wp.kernel(warp_image, enable_backward=False, module=_module_name(label, spec))
+    return wp.kernel(warp_image, enable_backward=False, module=mname)
 
 
 def pyramid_kernel(dtype, rows=False, channels=None):
