@@ -378,8 +378,10 @@ def markdown_table(header, rows, align=None):
 
 
 def write_file(path, write):
-    """Call ``write(temporary path)``, then rename it to ``path``."""
+    """Call ``write(temporary path)``, then rename it to ``path`` (its
+    folder made if missing)."""
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
     write(tmp)
     os.replace(tmp, path)
