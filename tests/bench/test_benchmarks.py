@@ -352,3 +352,29 @@ def test_local_speed_batch_section_replaces_only_itself(tmp_path):
     local_speed.write_batch_section(path, f"{b}\n\nother\n")
     local_speed.write_batch_section(path, f"{a}\n\nsecond\n")
     assert path.read_text(encoding="utf-8") == f"# The coarse pass\n\nrows\n\n{b}\n\nother\n\n{a}\n\nsecond\n"
+
+
+def test_antialias_rules_patch_the_reference_only_inside_and_the_first_is_the_library_rule():
+    """benchmarks/antialias_rules.py: its first rule leaves the reference's
+    output unchanged, another changes it (fewer sub-samples at 1/8), and the
+    reference is itself again after each, also after an error inside."""
+    import fpiwarp
+    from benchmarks import antialias, antialias_rules
+    from fpiwarp.sampling import antialias as aa
+
+    image = np.random.default_rng(3).random((96, 128, 1)).astype(np.float32)
+    transform, shape = antialias.fpi_shrink(96, 128, 8)
+
+    def warp():
+        return fpiwarp.warp_image(image, transform, shape, mode="edge", antialias=True, backend="numpy")
+
+    library = warp()
+    (span, one_tap, spacing, _), *others = antialias_rules.RULES.values()
+    with antialias_rules.rule(span, one_tap, spacing):
+        np.testing.assert_array_equal(warp(), library)
+    with antialias_rules.rule(*others[0][:3]):
+        assert not np.array_equal(warp(), library)
+    with pytest.raises(RuntimeError), antialias_rules.rule(*others[-1][:3]):
+        raise RuntimeError
+    assert aa.level_taps.__module__ == aa.__name__
+    np.testing.assert_array_equal(warp(), library)
