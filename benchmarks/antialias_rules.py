@@ -124,7 +124,69 @@ def study(quick, log=print):
     return rows
 
 
-def markdown(rows, machine_md):
+#: The cost split's cases: (label, sx, sy); sx None: a translation into the 1/2 shrink's output.
+COST_CASES = (("no shrink (a translation, 1/2's output shape)", None, None), ("1/2", 2, 2), ("1/8", 8, 8),
+              ("1/6 x 1/1.5", 6, 1.5))
+
+
+def cost_split(backend, rounds, quick=False, log=print):
+    """[{case, samples, plain_s, antialias_s, plain_cpu_s, antialias_cpu_s}]:
+    the library's rule on ``backend``, the antialiasing benchmark's 1920 x
+    1080 RGB uint8 source (its pyramid kept), calls interleaved round by
+    round, best of ``rounds`` (wall and process CPU time). The translation
+    reads one sub-sample per pixel: what the Jacobian and the antialiased
+    kernel's set-up cost beside the plain warp."""
+    h, w = bench.QUICK_COST_SIZE if quick else bench.COST_SIZE
+    image = np.random.default_rng(0).integers(0, 256, (h, w, 3), dtype=np.uint8)
+    top = Pyramid(image).top
+    calls, samples = {}, {}
+    for label, sx, sy in COST_CASES:
+        if sx is None:
+            transform, shape = fpiwarp.RLinear(1, 0, complex(w / 20, h / 20)), bench.fpi_shrink(h, w, 2)[1]
+        else:
+            transform, shape = bench.fpi_shrink(h, w, sx, sy)
+        samples[label] = mean_samples(transform, shape, np.ones(shape, bool), top)
+        for aa_on in (False, True):
+            calls[label, aa_on] = (lambda t=transform, sh=shape, a=aa_on:
+                                   fpiwarp.warp_image(image, t, sh, backend=backend, antialias=a))
+    best = {}
+    for fn in calls.values():
+        fn()
+    for _ in range(rounds):
+        for key, fn in calls.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn()
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            b = best.setdefault(key, [wall, cpu])
+            b[0], b[1] = min(b[0], wall), min(b[1], cpu)
+    rows = []
+    for label, _, _ in COST_CASES:
+        (pw, pc), (aw, ac) = best[label, False], best[label, True]
+        rows.append({"case": label, "samples": round(samples[label], 2), "plain_s": pw, "antialias_s": aw,
+                     "plain_cpu_s": pc, "antialias_cpu_s": ac})
+        log(f"cost {backend} {label}: {samples[label]:.2f} sub-samples, plain {pw * 1e3:.2f} ms, "
+            f"antialiased {aw * 1e3:.2f} ms")
+    return rows
+
+
+def cost_markdown(backend, rows, rounds):
+    body = [[r["case"], f"{r['samples']:.2f}", f"{r['plain_s'] * 1e3:.2f}", f"{r['antialias_s'] * 1e3:.2f}",
+             f"{r['antialias_s'] / r['plain_s']:.2f}", f"{r['antialias_cpu_s'] / r['plain_cpu_s']:.2f}"]
+            for r in rows]
+    header = ["case", "sub-samples per pixel", "plain (ms)", "antialiased (ms)", "wall ratio", "CPU ratio"]
+    return f"""## What a sub-sample costs ({backend})
+
+The library's rule on {backend}, 1920 x 1080 RGB uint8 source (its pyramid
+kept), each output of its shrink's size; best of {rounds} interleaved
+rounds, wall and process CPU time (all threads). The translation reads
+one sub-sample per pixel, so its ratio is what the Jacobian and the
+antialiased kernel's set-up add.
+
+{common.markdown_table(header, body)}
+"""
+
+
+def markdown(rows, machine_md, cost_md=""):
     names = list(RULES)
     header = ["picture", "FPI shrink", "plain order 1 (dB)"] + [f"{n}: dB / sub-samples" for n in names]
     body = [[r["picture"], r["shrink"], f"{r['plain']:.2f}"]
@@ -141,6 +203,7 @@ mean sub-samples the rule reads per pixel (the plain warp reads 1).
 
 {common.markdown_table(header, body)}
 
+{cost_md}
 {machine_md}
 """
 
@@ -150,15 +213,24 @@ def main(argv=None):
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small pictures, three shrinks (a smoke run)")
     parser.add_argument("--out", default=str(common.RESULTS), help="folder of antialias_rules.md and .json")
+    parser.add_argument("--backend", default="opencl",
+                        help="the backend of the cost split (default opencl, the fastest CPU backend; "
+                             "'none' skips it)")
+    parser.add_argument("--rounds", type=int, default=15, help="rounds of the cost split")
     args = parser.parse_args(argv)
-    info = common.machine_facts(backends=False)
+    info = common.machine_facts()
     t0 = time.perf_counter()
+    cost, cost_md = [], ""
+    if args.backend != "none":
+        cost = cost_split(args.backend, 2 if args.quick else args.rounds, args.quick)
+        cost_md = cost_markdown(args.backend, cost, 2 if args.quick else args.rounds)
     rows = study(args.quick)
     info["wall_s"] = round(time.perf_counter() - t0, 1)
     out = Path(args.out)
-    common.write_text(out / "antialias_rules.md", markdown(rows, common.machine_markdown(info)))
+    common.write_text(out / "antialias_rules.md", markdown(rows, common.machine_markdown(info), cost_md))
     common.write_json(out / "antialias_rules.json", {"machine": info, "rules": {
-        n: {"span": s, "one_tap": o, "spacing": p, "what": d} for n, (s, o, p, d) in RULES.items()}, "cases": rows})
+        n: {"span": s, "one_tap": o, "spacing": p, "what": d} for n, (s, o, p, d) in RULES.items()},
+        "cases": rows, "cost_backend": args.backend, "cost": cost})
 
 
 if __name__ == "__main__":
