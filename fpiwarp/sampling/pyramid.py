@@ -157,10 +157,13 @@ class SourcePyramids:
     pyramids built (tests count reuse with it).
     """
 
-    def __init__(self, build, size=KEPT_SOURCES, max_bytes=KEPT_SOURCE_BYTES):
+    def __init__(self, build, size=KEPT_SOURCES, max_bytes=KEPT_SOURCE_BYTES, on_clear=None):
         self.build = build
         self.size = size
         self.max_bytes = max_bytes
+        #: called (no arguments) after :meth:`clear`: a backend's other
+        #: references to the kept pyramids go with them
+        self.on_clear = on_clear
         #: pyramids built so far
         self.builds = 0
         self._lock = threading.Lock()
@@ -202,3 +205,5 @@ class SourcePyramids:
         """Forget every kept pyramid (and the copies of their pixels)."""
         with self._lock:
             self._entries.clear()
+        if self.on_clear is not None:
+            self.on_clear()

@@ -105,7 +105,9 @@ class PyramidCache:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self.atlases = SourcePyramids(build_atlas)  # (atlas array, rects) per source
+        # (atlas array, rects) per source; clearing them (the backend's
+        # host_pyramids) forgets the hardware filter's sources too
+        self.atlases = SourcePyramids(build_atlas, on_clear=self.forget)
         self._uploaded = None  # the (atlas, rects) in the texture
         self._texture = None
         #: the hardware filter's sources: (kept pixels,) per source, by the same rule
@@ -148,6 +150,14 @@ class PyramidCache:
             tex.build_mipmaps()
             self._mip_uploaded = entry
         return self._mip_texture
+
+    def forget(self):
+        """Forget the kept sources of the hardware filter and which atlas and
+        source the textures hold (so that nothing keeps their host arrays);
+        the textures stay for the next upload (any thread may call this;
+        :meth:`release` frees them, in the context's thread)."""
+        self._uploaded = self._mip_uploaded = None
+        self.sources.clear()
 
     def release(self):
         """Free the textures and forget the atlases and sources."""

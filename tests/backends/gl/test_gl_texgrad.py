@@ -141,6 +141,26 @@ def test_mipmaps_are_built_once_per_source_and_never_stale(gl_backend):
     assert np.array_equal(changed, _warp(img.copy(), SHRINKS["1/8"], (15, 20)))
 
 
+def test_clearing_the_host_pyramids_forgets_the_mipmapped_sources_too(gl_backend):
+    """The backend's host_pyramids.clear() (the documented way to free the
+    kept pyramids) also drops the hardware filter's kept source copies and
+    what the textures were uploaded from; the next call builds again and
+    gives the same pixels."""
+    backend = get_backend(gl_backend)
+    cache = backend.warper.pyramids
+    img = make_image((120, 160, 3), np.uint8, seed=9)
+    hw = _warp(img, SHRINKS["1/8"], (15, 20))
+    sw = fpiwarp.warp_image(img, SHRINKS["1/8"], (15, 20), antialias=True, backend="gl")
+    assert len(cache.sources) >= 1 and len(cache.atlases) >= 1
+    builds = cache.sources.builds, cache.atlases.builds
+    backend.host_pyramids.clear()
+    assert len(cache.sources) == 0 and len(cache.atlases) == 0
+    assert cache._uploaded is None and cache._mip_uploaded is None  # nothing keeps the host arrays
+    assert np.array_equal(_warp(img, SHRINKS["1/8"], (15, 20)), hw)
+    assert np.array_equal(fpiwarp.warp_image(img, SHRINKS["1/8"], (15, 20), antialias=True, backend="gl"), sw)
+    assert (cache.sources.builds, cache.atlases.builds) == (builds[0] + 1, builds[1] + 1)
+
+
 def test_anisotropy_is_the_drivers_only_where_its_filter_passes_the_check(gl_backend):
     warper = get_backend(gl_backend).warper
     most = max(1.0, float(warper.ctx.max_anisotropy))
