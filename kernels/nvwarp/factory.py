@@ -245,17 +245,18 @@ def _make_image_kernel(spec):
                     store_pixel(dst, oy, x + i, vi, channels, wp.static(TOP))
                     i = i + 1
                 x = x + count
-        while x < x_last:  # (a while loop: Warp's range loop carries a step sign through every iteration)
-            z = wp.vec2(float(x), float(y))
-            s, dz, dzb = map_at(blk, z)
-            v = cval
-            if in_range(s):
-                if wp.static(AA):
-                    v = sample_footprint(src, src0, h, pyr, levels, n, s, dz, dzb, order, mode, cval, channels)
-                else:
-                    v = sample(src, src0, h, src.shape[1], s, order, mode, cval, channels)
-            store_pixel(dst, oy, x, v, channels, wp.static(TOP))
-            x = x + 1
+        if wp.static(CHUNK == 0):  # (a chunked kernel has no pixel left for it: not generated there)
+            while x < x_last:  # (a while loop: Warp's range loop carries a step sign through every iteration)
+                z = wp.vec2(float(x), float(y))
+                s, dz, dzb = map_at(blk, z)
+                v = cval
+                if in_range(s):
+                    if wp.static(AA):
+                        v = sample_footprint(src, src0, h, pyr, levels, n, s, dz, dzb, order, mode, cval, channels)
+                    else:
+                        v = sample(src, src0, h, src.shape[1], s, order, mode, cval, channels)
+                store_pixel(dst, oy, x, v, channels, wp.static(TOP))
+                x = x + 1
 
     warp_image.__name__ = warp_image.__qualname__ = label
     return wp.kernel(warp_image, enable_backward=False, module=mname)
