@@ -19,6 +19,10 @@ A draw holds at most as many images as fit the size limit of the target
 size and :data:`CHUNK_BYTES` (:data:`SOFTWARE_CHUNK_BYTES` on a software
 rasterizer such as llvmpipe, where a draw that exceeds the caches is slower
 than single warps); larger groups are several draws, never refused.
+A draw of one image (by the rule above, 512² RGB uint8 and up on llvmpipe) samples
+a 2D texture, as the single image does, not a layer of an array
+(FPW_BATCH_SINGLE, glsl/include/sample.glsl): llvmpipe samples arrays
+about 13% slower, which made such batches slower than the loop.
 Outputs wider than the size limit are drawn in column tiles, as for one
 image. Sources beyond the size limit (the single-image path
 tiles those) and drivers without shader storage buffers go image by
@@ -53,6 +57,9 @@ CHUNK_BYTES = 256 << 20
 SOFTWARE_CHUNK_BYTES = 2 << 20
 #: Shader storage binding point of the stacked blocks.
 BATCH_BINDING = 0
+#: A draw of one image samples a 2D texture (FPW_BATCH_SINGLE), not a
+#: layer of a texture array (read per call: False for benchmarks comparing the two).
+SINGLE_SOURCE_TEXTURE = True
 
 
 def supports_batches(ctx):
@@ -80,10 +87,12 @@ def kind_groups(stack, n, specialize, by_newton=False):
     return [(*k, idx.astype(np.intp), True) for k, idx in stack.groups(key)]
 
 
-def batch_program(warper, key):
+def batch_program(warper, key, single=False):
     """The program of ``key`` compiled for batches (FPW_BATCH), its blocks'
-    storage buffer at :data:`BATCH_BINDING`."""
-    prog = warper.program(key.with_changes(flags=key.flags + ("FPW_BATCH",)))
+    storage buffer at :data:`BATCH_BINDING`; ``single``: for draws of one
+    image, its source a 2D texture (FPW_BATCH_SINGLE)."""
+    flags = ("FPW_BATCH",) + (("FPW_BATCH_SINGLE",) if single else ())
+    prog = warper.program(key.with_changes(flags=key.flags + flags))
     storage = prog.get("FpiwarpBatch", None)
     if storage is not None:
         storage.binding = BATCH_BINDING
@@ -130,12 +139,13 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
         for stages, short, newton, idx, own in kind_groups(stack_of_blocks, n, warper.specialize, by_newton=True):
             warper.short_map, warper.newton_map = short, newton  # as set_map sets them for one of the maps
             key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=True)
-            prog = batch_program(warper, key)
-            nodes = (batch_program(warper, coarse.node_key(stages)), stages) if coarse.FLAG in key.flags else None
-            set_sampling_values(prog, stack, (oh, ow), cval, own)
-            per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize, nodes is not None)
+            seeded = coarse.FLAG in key.flags
+            per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize, seeded)
             draws = -(-len(idx) // per_draw)
             size = -(-len(idx) // draws)  # draws of equal size: one texture and target for all
+            prog = batch_program(warper, key, single=size == 1 and SINGLE_SOURCE_TEXTURE)
+            nodes = (batch_program(warper, coarse.node_key(stages)), stages) if seeded else None
+            set_sampling_values(prog, stack, (oh, ow), cval, own)
             for a in range(0, len(idx), size):
                 draw_group(warper, prog, stack, stack_of_blocks.array, idx[a:a + size], out, mode, packs, own,
                            size, nodes)
@@ -159,19 +169,24 @@ def set_sampling_values(prog, stack, output_shape, cval, own):
 def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own, size, nodes=None):
     """One instanced draw: images ``idx`` of ``stack`` into ``out[idx]``
     (``blocks``: the (N or 1, rows, 4) stacked blocks),
-    in a texture array and a target for ``size`` images (several draws
-    only where the output is wider than the size limit). ``nodes``: (the
+    in a texture array (a 2D texture where ``size`` is 1 and
+    :data:`SINGLE_SOURCE_TEXTURE`) and a target for ``size`` images (several
+    draws only where the output is wider than the size limit). ``nodes``: (the
     nodes' batch program, the kind's stages) of a draw taking the coarse
     pass, each draw then preceded by its nodes' (:func:`.coarse.seeded_draw`)."""
     _, h, w, c = stack.shape
     m, (oh, ow) = len(idx), out.shape[1:3]
     targets = warper.targets
-    layers = targets.cached("batch_src", (w, h, size, c, stack.dtype), lambda: warper.ctx.texture_array(
-        (w, h, size), c, dtype=SOURCE_TEXTURE_DTYPES[stack.dtype]))
+    contiguous = idx[-1] - idx[0] == m - 1
+    if size == 1 and SINGLE_SOURCE_TEXTURE:  # the single image's texture (the loop's, reused)
+        layers = targets.texture("src", (w, h), c, SOURCE_TEXTURE_DTYPES[stack.dtype])
+        layers.write(stack[idx[0]])
+    else:
+        layers = targets.cached("batch_src", (w, h, size, c, stack.dtype), lambda: warper.ctx.texture_array(
+            (w, h, size), c, dtype=SOURCE_TEXTURE_DTYPES[stack.dtype]))
+        layers.write(stack[idx[0]:idx[0] + m] if contiguous else stack[idx], viewport=(0, 0, 0, w, h, m))
     layers.filter = (moderngl.NEAREST, moderngl.NEAREST)
     layers.repeat_x = layers.repeat_y = mode == "wrap"  # where textureGather places the taps
-    contiguous = idx[-1] - idx[0] == m - 1
-    layers.write(stack[idx[0]:idx[0] + m] if contiguous else stack[idx], viewport=(0, 0, 0, w, h, m))
     mine = blocks[idx] if own else blocks[:1]  # (k, rows, 4), zero rows past each block
     stacked = np.zeros((len(mine), MAX_ROWS, 4), np.float32)
     stacked[:, : mine.shape[1]] = mine
