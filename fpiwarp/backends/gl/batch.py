@@ -19,10 +19,13 @@ A draw holds at most as many images as fit the size limit of the target
 size and :data:`CHUNK_BYTES` (:data:`SOFTWARE_CHUNK_BYTES` on a software
 rasterizer such as llvmpipe, where a draw that exceeds the caches is slower
 than single warps); larger groups are several draws, never refused.
-A draw of one image (by the rule above, 512² RGB uint8 and up on llvmpipe) samples
-a 2D texture, as the single image does, not a layer of an array
-(FPW_BATCH_SINGLE, glsl/include/sample.glsl): llvmpipe samples arrays
-about 13% slower, which made such batches slower than the loop.
+A draw of one image samples a 2D texture, as the single image does, not a
+layer of an array (FPW_BATCH_SINGLE, glsl/include/sample.glsl): llvmpipe
+samples arrays about 13% slower per pixel, which made batches of draws of
+one image (512² RGB uint8 and up) slower than the loop. So a software
+rasterizer draws each image alone from :data:`SOFTWARE_ALONE_BYTES` of
+source and output on (about 157² RGB uint8), where the 2D texture gains
+more than fewer draws would.
 Outputs wider than the size limit are drawn in column tiles, as for one
 image. Sources beyond the size limit (the single-image path
 tiles those) and drivers without shader storage buffers go image by
@@ -50,11 +53,20 @@ from .tiling import SOURCE_TEXTURE_DTYPES, tiles
 CHUNK_BYTES = 256 << 20
 #: Bytes of one draw on a software rasterizer (Mesa llvmpipe, softpipe,
 #: SwiftShader), at most (at least one image): the CPU renders, and a
-#: draw whose sources and target exceed the caches ran slower than the loop
-#: of single warps. 64 x 512² RGB uint8, 64 maps, llvmpipe on 2 cores, best
-#: of 5 interleaved: draws of 2 MiB 301 ms, 4 MiB 387 ms, 16 MiB 510 ms,
-#: 256 MiB 537 ms, the loop 533 ms.
+#: draw whose sources and target exceed the caches runs slower. 64 x 512²
+#: RGB uint8, 64 FPIs, llvmpipe 22.3 on 2 busy cores, best of 5
+#: interleaved (draws held arrays then): the loop 151 ms, draws of 2 MiB
+#: 163 ms, 4 MiB 187 ms, 16 MiB 243 ms, 64 MiB 270 ms, 256 MiB 192 ms. From
+#: 64 x 128² (16 images a draw): 2 MiB 10.4 ms CPU, 1 MiB 10.9, 512 KiB
+#: 11.0, one image a draw 12.3, the loop 17.1.
 SOFTWARE_CHUNK_BYTES = 2 << 20
+#: Bytes of one image's source and output (counted as for the chunks) from
+#: which a software rasterizer draws each image alone, its source in a 2D
+#: texture, not a layer of an array (see the module's docstring). CPU time,
+#: 64 images RGB uint8, 64 FPIs, best of 9 interleaved, same llvmpipe:
+#: 144² (162 KiB) 2 MiB draws 13.3 ms, alone 14.7; 160² (200 KiB) 17.6,
+#: 17.3; 181² (256 KiB) 27.7, 23.0; 256² (512 KiB) 39.1, 34.0.
+SOFTWARE_ALONE_BYTES = 192 << 10
 #: Shader storage binding point of the stacked blocks.
 BATCH_BINDING = 0
 #: A draw of one image samples a 2D texture (FPW_BATCH_SINGLE), not a
@@ -106,7 +118,10 @@ def images_per_draw(warper, image_shape, output_shape, itemsize, seeded=False):
     (h, w, _), (oh, ow) = image_shape, output_shape
     info = warper.ctx.info
     per_image = (h * w + oh * ow) * 4 * itemsize
-    chunk = SOFTWARE_CHUNK_BYTES if software_rasterizer(warper.ctx) else CHUNK_BYTES
+    software = software_rasterizer(warper.ctx)
+    if software and per_image >= SOFTWARE_ALONE_BYTES:
+        return 1
+    chunk = SOFTWARE_CHUNK_BYTES if software else CHUNK_BYTES
     limits = [warper.max_size // oh, info.get("GL_MAX_ARRAY_TEXTURE_LAYERS") or 256, chunk // per_image,
               (info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 1 << 24) // (MAX_ROWS * 16)]
     if seeded:

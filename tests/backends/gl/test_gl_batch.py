@@ -101,6 +101,25 @@ def test_draws_of_one_image(make_gl_warper, rng, monkeypatch, single_texture):
     assert any("FPW_BATCH_SINGLE" in key.flags for key in w.programs.programs) == single_texture
 
 
+@pytest.mark.parametrize("software", [True, False])
+def test_images_drawn_alone_from_a_size_on(make_gl_warper, monkeypatch, software):
+    """A software rasterizer draws each image alone from SOFTWARE_ALONE_BYTES
+    of source and output on, below in chunks of SOFTWARE_CHUNK_BYTES; other
+    drivers fill CHUNK_BYTES."""
+    from fpiwarp.backends.gl import batch
+
+    monkeypatch.setattr(batch, "software_rasterizer", lambda ctx: software)
+    w = make_gl_warper()
+    side = 64
+    while (2 * side * side) * 4 < batch.SOFTWARE_ALONE_BYTES:
+        side += 1
+    alone, below = batch.images_per_draw(w, (side, side, 3), (side, side), 1), batch.images_per_draw(
+        w, (side - 1, side - 1, 3), (side - 1, side - 1), 1)
+    chunk = batch.SOFTWARE_CHUNK_BYTES if software else batch.CHUNK_BYTES
+    assert 1 < below <= chunk // (2 * (side - 1) ** 2 * 4)
+    assert (alone == 1) == software
+
+
 @pytest.mark.parametrize("case", ["tiled source", "no storage buffers"])
 def test_image_by_image_fallbacks(make_gl_warper, rng, monkeypatch, case):
     from fpiwarp.backends.gl import batch
