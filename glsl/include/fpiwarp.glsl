@@ -18,7 +18,8 @@
 //   FPW_GATHER + FPW_CHANNELS (order 1 through textureGather, see below),
 //   FPW_HOT_STAGES (rows forwarded as flat varyings, see fpw_row),
 //   FPW_BATCH (one instance of a batch: its block, source layer and rows,
-//     see batch.glsl),
+//     see batch.glsl; with FPW_BATCH_SINGLE a draw of one image, its source
+//     a 2D texture, see sample.glsl),
 //   FPW_ACCUMULATE / FPW_OUT_INT (the fragment output kind, see fpw_emit).
 // The per-draw values the sampler and the output read (fpw_src_size,
 // fpw_cval, ...) are declared from the list in per_draw.glsl.

@@ -7,8 +7,11 @@
 // sums are computed here in float, never by the texture unit.
 // FPW_GATHER_C(uv, c): channel c of the 2×2 texels around uv, as floats.
 // A batch (FPW_BATCH) reads layer fpw_batch.y of a texture array; the
-// texel and gather coordinates below are the single image's otherwise.
-#ifdef FPW_BATCH
+// texel and gather coordinates below are the single image's otherwise. A
+// batch draw of one image (FPW_BATCH_SINGLE) reads a 2D texture as the
+// single image does: llvmpipe samples an array about 13% slower, even at a
+// constant layer (fpiwarp/backends/gl/batch.py).
+#if defined(FPW_BATCH) && !defined(FPW_BATCH_SINGLE)
 #define FPW_SAMPLER sampler2DArray
 #define FPW_USAMPLER usampler2DArray
 #define FPW_AT(ij) ivec3(ij, fpw_batch.y)

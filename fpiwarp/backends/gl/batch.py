@@ -19,6 +19,13 @@ A draw holds at most as many images as fit the size limit of the target
 size and :data:`CHUNK_BYTES` (:data:`SOFTWARE_CHUNK_BYTES` on a software
 rasterizer such as llvmpipe, where a draw that exceeds the caches is slower
 than single warps); larger groups are several draws, never refused.
+A draw of one image samples a 2D texture, as the single image does, not a
+layer of an array (FPW_BATCH_SINGLE, glsl/include/sample.glsl): llvmpipe
+samples arrays about 13% slower per pixel, which made batches of draws of
+one image (512² RGB uint8 and up) slower than the loop. So a software
+rasterizer draws each image alone from :data:`SOFTWARE_ALONE_BYTES` of
+source and output on (about 157² RGB uint8), where the 2D texture gains
+more than fewer draws would.
 Outputs wider than the size limit are drawn in column tiles, as for one
 image. Sources beyond the size limit (the single-image path
 tiles those) and drivers without shader storage buffers go image by
@@ -46,13 +53,25 @@ from .tiling import SOURCE_TEXTURE_DTYPES, tiles
 CHUNK_BYTES = 256 << 20
 #: Bytes of one draw on a software rasterizer (Mesa llvmpipe, softpipe,
 #: SwiftShader), at most (at least one image): the CPU renders, and a
-#: draw whose sources and target exceed the caches ran slower than the loop
-#: of single warps. 64 x 512² RGB uint8, 64 maps, llvmpipe on 2 cores, best
-#: of 5 interleaved: draws of 2 MiB 301 ms, 4 MiB 387 ms, 16 MiB 510 ms,
-#: 256 MiB 537 ms, the loop 533 ms.
+#: draw whose sources and target exceed the caches runs slower. 64 x 512²
+#: RGB uint8, 64 FPIs, llvmpipe 22.3 on 2 busy cores, best of 5
+#: interleaved (draws held arrays then): the loop 151 ms, draws of 2 MiB
+#: 163 ms, 4 MiB 187 ms, 16 MiB 243 ms, 64 MiB 270 ms, 256 MiB 192 ms. From
+#: 64 x 128² (16 images a draw): 2 MiB 10.4 ms CPU, 1 MiB 10.9, 512 KiB
+#: 11.0, one image a draw 12.3, the loop 17.1.
 SOFTWARE_CHUNK_BYTES = 2 << 20
+#: Bytes of one image's source and output (counted as for the chunks) from
+#: which a software rasterizer draws each image alone, its source in a 2D
+#: texture, not a layer of an array (see the module's docstring). CPU time,
+#: 64 images RGB uint8, 64 FPIs, best of 9 interleaved, same llvmpipe:
+#: 144² (162 KiB) 2 MiB draws 13.3 ms, alone 14.7; 160² (200 KiB) 17.6,
+#: 17.3; 181² (256 KiB) 27.7, 23.0; 256² (512 KiB) 39.1, 34.0.
+SOFTWARE_ALONE_BYTES = 192 << 10
 #: Shader storage binding point of the stacked blocks.
 BATCH_BINDING = 0
+#: A draw of one image samples a 2D texture (FPW_BATCH_SINGLE), not a
+#: layer of a texture array (read per call: False for benchmarks comparing the two).
+SINGLE_SOURCE_TEXTURE = True
 
 
 def supports_batches(ctx):
@@ -80,10 +99,12 @@ def kind_groups(stack, n, specialize, by_newton=False):
     return [(*k, idx.astype(np.intp), True) for k, idx in stack.groups(key)]
 
 
-def batch_program(warper, key):
+def batch_program(warper, key, single=False):
     """The program of ``key`` compiled for batches (FPW_BATCH), its blocks'
-    storage buffer at :data:`BATCH_BINDING`."""
-    prog = warper.program(key.with_changes(flags=key.flags + ("FPW_BATCH",)))
+    storage buffer at :data:`BATCH_BINDING`; ``single``: for draws of one
+    image, its source a 2D texture (FPW_BATCH_SINGLE)."""
+    flags = ("FPW_BATCH",) + (("FPW_BATCH_SINGLE",) if single else ())
+    prog = warper.program(key.with_changes(flags=key.flags + flags))
     storage = prog.get("FpiwarpBatch", None)
     if storage is not None:
         storage.binding = BATCH_BINDING
@@ -97,7 +118,10 @@ def images_per_draw(warper, image_shape, output_shape, itemsize, seeded=False):
     (h, w, _), (oh, ow) = image_shape, output_shape
     info = warper.ctx.info
     per_image = (h * w + oh * ow) * 4 * itemsize
-    chunk = SOFTWARE_CHUNK_BYTES if software_rasterizer(warper.ctx) else CHUNK_BYTES
+    software = software_rasterizer(warper.ctx)
+    if software and per_image >= SOFTWARE_ALONE_BYTES:
+        return 1
+    chunk = SOFTWARE_CHUNK_BYTES if software else CHUNK_BYTES
     limits = [warper.max_size // oh, info.get("GL_MAX_ARRAY_TEXTURE_LAYERS") or 256, chunk // per_image,
               (info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 1 << 24) // (MAX_ROWS * 16)]
     if seeded:
@@ -130,12 +154,13 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
         for stages, short, newton, idx, own in kind_groups(stack_of_blocks, n, warper.specialize, by_newton=True):
             warper.short_map, warper.newton_map = short, newton  # as set_map sets them for one of the maps
             key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=True)
-            prog = batch_program(warper, key)
-            nodes = (batch_program(warper, coarse.node_key(stages)), stages) if coarse.FLAG in key.flags else None
-            set_sampling_values(prog, stack, (oh, ow), cval, own)
-            per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize, nodes is not None)
+            seeded = coarse.FLAG in key.flags
+            per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize, seeded)
             draws = -(-len(idx) // per_draw)
             size = -(-len(idx) // draws)  # draws of equal size: one texture and target for all
+            prog = batch_program(warper, key, single=size == 1 and SINGLE_SOURCE_TEXTURE)
+            nodes = (batch_program(warper, coarse.node_key(stages)), stages) if seeded else None
+            set_sampling_values(prog, stack, (oh, ow), cval, own)
             for a in range(0, len(idx), size):
                 draw_group(warper, prog, stack, stack_of_blocks.array, idx[a:a + size], out, mode, packs, own,
                            size, nodes)
@@ -159,19 +184,24 @@ def set_sampling_values(prog, stack, output_shape, cval, own):
 def draw_group(warper, prog, stack, blocks, idx, out, mode, packs, own, size, nodes=None):
     """One instanced draw: images ``idx`` of ``stack`` into ``out[idx]``
     (``blocks``: the (N or 1, rows, 4) stacked blocks),
-    in a texture array and a target for ``size`` images (several draws
-    only where the output is wider than the size limit). ``nodes``: (the
+    in a texture array (a 2D texture where ``size`` is 1 and
+    :data:`SINGLE_SOURCE_TEXTURE`) and a target for ``size`` images (several
+    draws only where the output is wider than the size limit). ``nodes``: (the
     nodes' batch program, the kind's stages) of a draw taking the coarse
     pass, each draw then preceded by its nodes' (:func:`.coarse.seeded_draw`)."""
     _, h, w, c = stack.shape
     m, (oh, ow) = len(idx), out.shape[1:3]
     targets = warper.targets
-    layers = targets.cached("batch_src", (w, h, size, c, stack.dtype), lambda: warper.ctx.texture_array(
-        (w, h, size), c, dtype=SOURCE_TEXTURE_DTYPES[stack.dtype]))
+    contiguous = idx[-1] - idx[0] == m - 1
+    if size == 1 and SINGLE_SOURCE_TEXTURE:  # the single image's texture (the loop's, reused)
+        layers = targets.texture("src", (w, h), c, SOURCE_TEXTURE_DTYPES[stack.dtype])
+        layers.write(stack[idx[0]])
+    else:
+        layers = targets.cached("batch_src", (w, h, size, c, stack.dtype), lambda: warper.ctx.texture_array(
+            (w, h, size), c, dtype=SOURCE_TEXTURE_DTYPES[stack.dtype]))
+        layers.write(stack[idx[0]:idx[0] + m] if contiguous else stack[idx], viewport=(0, 0, 0, w, h, m))
     layers.filter = (moderngl.NEAREST, moderngl.NEAREST)
     layers.repeat_x = layers.repeat_y = mode == "wrap"  # where textureGather places the taps
-    contiguous = idx[-1] - idx[0] == m - 1
-    layers.write(stack[idx[0]:idx[0] + m] if contiguous else stack[idx], viewport=(0, 0, 0, w, h, m))
     mine = blocks[idx] if own else blocks[:1]  # (k, rows, 4), zero rows past each block
     stacked = np.zeros((len(mine), MAX_ROWS, 4), np.float32)
     stacked[:, : mine.shape[1]] = mine

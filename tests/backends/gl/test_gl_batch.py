@@ -68,6 +68,58 @@ def test_chunks_of_one_image(make_gl_warper, rng, monkeypatch):
     np.testing.assert_array_equal(got, expected)
 
 
+@pytest.mark.parametrize("single_texture", [True, False])
+def test_draws_of_one_image(make_gl_warper, rng, monkeypatch, single_texture):
+    """Chunks of one byte: every draw holds one image, its source a 2D
+    texture (FPW_BATCH_SINGLE, where SINGLE_SOURCE_TEXTURE) or a layer of a
+    texture array; the loop's result either way, for gathered and packed
+    RGB, a Newton map's coarse pass, cubic sampling, one shared map and
+    float32 gray."""
+    from fpiwarp.backends.gl import batch
+
+    for name in ("CHUNK_BYTES", "SOFTWARE_CHUNK_BYTES"):
+        monkeypatch.setattr(batch, name, 1)
+    monkeypatch.setattr(batch, "SINGLE_SOURCE_TEXTURE", single_texture)
+    sizes = []
+    real = batch.draw_group
+    monkeypatch.setattr(batch, "draw_group", lambda w, p, s, b, idx, *a: sizes.append(len(idx)) or
+                        real(w, p, s, b, idx, *a))
+    w = make_gl_warper()
+    rgb = rng.integers(0, 256, size=(3, 11, 13, 3), dtype=np.uint8)
+    maps = [make_map(kind, k, 13, 11) for k, kind in enumerate(["fpi", "tps", "fpi"])]
+    for options in ({"order": 1, "mode": "constant", "cval": np.array([7.0, 0.0, 255.0])},
+                    {"order": 1, "mode": "wrap", "cval": np.zeros(3)},
+                    {"order": 3, "mode": "reflect", "cval": np.zeros(3)}):
+        got, expected = run(w, rgb, maps, (9, 15), **options)
+        np.testing.assert_array_equal(got, expected)
+    got, expected = run(w, rgb, maps[:1], (12, 10), order=1, mode="edge", cval=np.zeros(3))
+    np.testing.assert_array_equal(got, expected)
+    gray = rng.uniform(-1, 2, size=(2, 9, 8, 1)).astype(np.float32)
+    got, expected = run(w, gray, maps[1:], (7, 9), order=0, mode="edge", cval=np.zeros(1))
+    np.testing.assert_array_equal(got, expected)
+    assert sizes and set(sizes) == {1}
+    assert any("FPW_BATCH_SINGLE" in key.flags for key in w.programs.programs) == single_texture
+
+
+@pytest.mark.parametrize("software", [True, False])
+def test_images_drawn_alone_from_a_size_on(make_gl_warper, monkeypatch, software):
+    """A software rasterizer draws each image alone from SOFTWARE_ALONE_BYTES
+    of source and output on, below in chunks of SOFTWARE_CHUNK_BYTES; other
+    drivers fill CHUNK_BYTES."""
+    from fpiwarp.backends.gl import batch
+
+    monkeypatch.setattr(batch, "software_rasterizer", lambda ctx: software)
+    w = make_gl_warper()
+    side = 64
+    while (2 * side * side) * 4 < batch.SOFTWARE_ALONE_BYTES:
+        side += 1
+    alone, below = batch.images_per_draw(w, (side, side, 3), (side, side), 1), batch.images_per_draw(
+        w, (side - 1, side - 1, 3), (side - 1, side - 1), 1)
+    chunk = batch.SOFTWARE_CHUNK_BYTES if software else batch.CHUNK_BYTES
+    assert 1 < below <= chunk // (2 * (side - 1) ** 2 * 4)
+    assert (alone == 1) == software
+
+
 @pytest.mark.parametrize("case", ["tiled source", "no storage buffers"])
 def test_image_by_image_fallbacks(make_gl_warper, rng, monkeypatch, case):
     from fpiwarp.backends.gl import batch
