@@ -58,10 +58,9 @@ def test_bounded_draws_and_column_tiles(make_gl_warper, rng, shape):
     np.testing.assert_array_equal(got, expected)
 
 
-def test_chunks_of_one_image(make_gl_warper, rng, monkeypatch):
-    from fpiwarp.backends.gl import batch
-
-    monkeypatch.setattr(batch, "CHUNK_BYTES", 1)
+def test_antialiased_batches_equal_the_loop(make_gl_warper, rng):
+    """Antialiased batches go image by image (each source's pyramid once);
+    chunked draws are test_draws_of_one_image's."""
     stack = rng.integers(0, 65536, size=(4, 7, 9, 4), dtype=np.uint16)
     maps = [make_map(kind, k, 9, 7) for k, kind in enumerate(["tps", "fpi", "tps", "tps"])]
     got, expected = run(make_gl_warper(), stack, maps, (7, 9), order=1, mode="wrap", cval=np.zeros(4), antialias=True)
