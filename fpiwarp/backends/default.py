@@ -338,7 +338,7 @@ def _device_changed(name):
 
 def _accepts(name, dtype, order, mode, antialias, options, stages, side):
     caps = backend_capabilities(name)
-    if dtype is not None and str(dtype) not in [str(d) for d in caps.dtypes]:
+    if dtype is not None and dtype not in caps.dtypes:  # numpy dtypes compare equal to their names and aliases
         return False
     if order not in caps.orders or mode not in caps.modes or antialias and not caps.antialias:
         return False

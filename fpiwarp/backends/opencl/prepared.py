@@ -6,17 +6,28 @@ the map's kind): its own kernel object with its arguments set, its own
 device buffers for the source and (small) outputs, the launch shape. A
 call copies the image in without waiting, launches, and reads the output
 back: one wait per call. On a CPU, large outputs are written in place and
-large sources read in place (USE_HOST_PTR), with no copy: at 4K float32
-RGB the upload was a fifth of the call. The kernel never reads past a
+sources read in place (USE_HOST_PTR), with no copy: at 4K float32 RGB the
+upload was a fifth of the call. The kernel never reads past a
 source's last byte (uint8/uint16 pixels narrower than the 32-bit word it
 loads them as included: see FW_WORD_TAIL in fpiwarp_map.h), so the
 caller's array needs no slack after it. The block buffer is the job's own too: a new
 block is uploaded only when its bytes differ from the job's last one.
 
+An output of :data:`RECYCLE_MIN_BYTES` or more is fresh memory from the
+OS at every call (malloc maps blocks that large anew), whose pages the
+kernel's first writes fault in and the OS zeroes: a sixth of a 4K float32
+RGB call. The job keeps its last :data:`SPARE_OUTPUTS` such outputs and
+returns one again once nothing else refers to it
+(:meth:`ClJob._spare_unused`: its caller dropped it, and every view of
+it), so a loop that keeps each result until the next call
+(``out = warper(frame)``) reuses two blocks of memory; a result still held
+is never touched.
+
 :class:`BoundMap` is the backend's ``bind``: the map's parameter block is
 packed and checked once, and each kind of call keeps its job.
 """
 
+import sys
 import weakref
 
 import numpy as np
@@ -48,6 +59,35 @@ COARSE_OPTION = "-DFW_COARSE=1"
 PYRAMID_ARG = 8
 #: Jobs kept per backend (plain calls) and per bound map, least recently used dropped.
 MAX_JOBS = 4
+#: Outputs of this many bytes or more are recycled (see the module
+#: docstring); None: never. glibc's malloc serves blocks under 32 MiB from
+#: its heap, whose pages stay mapped between calls (a 4K RGB uint8 output,
+#: 25 MB, costs 0.2 ms to touch), and maps larger ones anew each time (a
+#: 4K RGB float32 output, 100 MB: 6 ms of page zeroing on one core, more
+#: inside the kernel's two threads, plus the unmapping when it is freed).
+#: Each job keeps SPARE_OUTPUTS such outputs alive (up to MAX_JOBS jobs per bound map).
+RECYCLE_MIN_BYTES = 32 << 20
+#: Recycled outputs a job keeps: two, so that the result before last is
+#: free again while the caller holds the last one.
+SPARE_OUTPUTS = 2
+
+
+class _SpareProbe:
+    """An object held by one attribute alone, counted as
+    :meth:`ClJob._spare_unused` counts its spare (same expression)."""
+
+    def __init__(self):
+        self._spares = [np.empty(0)]
+
+    def count(self, i):
+        return sys.getrefcount(self._spares[i])
+
+
+#: The reference count :meth:`ClJob._spare_unused` reads for a spare that
+#: only the job holds (interpreters count stack references differently);
+#: None where the interpreter has no reference counts (recycling is off).
+_UNUSED_REFS = _SpareProbe().count(0) if hasattr(sys, "getrefcount") and \
+    sys.implementation.name == "cpython" else None
 
 
 def job_key(image, output_shape, order, mode, cval, antialias, kind):
@@ -107,15 +147,21 @@ class ClJob:
         self._kernel = cl.Kernel(program, name)  # its own: arguments stay set between calls
         self._global = global_size(self._local, (oh, ow))
         mf = cl.mem_flags
-        #: the kernel reads a large source in place (no upload): it never reads
-        #: past the last byte of a source of IMAGE_SLACK bytes or more
-        self._src_in_place = be.zero_copy and image.nbytes >= max(ZERO_COPY_MIN_BYTES, IMAGE_SLACK)
+        #: on a CPU the kernel reads the source in place (no upload, at any
+        #: size: wrapping the caller's array is cheaper than the copy command,
+        #: 30 us of a 0.19 ms 256² RGB call): it never reads past the last
+        #: byte of a source of IMAGE_SLACK bytes or more
+        self._src_in_place = be.zero_copy and image.nbytes >= IMAGE_SLACK
         self._src = cl.Buffer(be.context, mf.READ_ONLY, 4 if self._src_in_place else image.nbytes + IMAGE_SLACK)
         self._block = None
         self._block_bytes = None
         nbytes = oh * ow * c * image.dtype.itemsize
         self._zero_copy = be.zero_copy and nbytes >= ZERO_COPY_MIN_BYTES
         self._dst = None if self._zero_copy else cl.Buffer(be.context, mf.WRITE_ONLY, max(nbytes, 4))
+        #: the last outputs returned, kept to be reused (RECYCLE_MIN_BYTES), oldest first
+        self._recycle = RECYCLE_MIN_BYTES is not None and _UNUSED_REFS is not None and \
+            nbytes >= RECYCLE_MIN_BYTES
+        self._spares = []
         cval4 = np.zeros(1, dtype=cl.cltypes.float4)
         for i, v in enumerate(cval):
             cval4[0][i] = v
@@ -184,6 +230,30 @@ class ClJob:
             del src
         return out
 
+    def _output(self):
+        """A new output array: one of the job's spares that nothing else
+        refers to any more (and whose shape, dtype and flags its caller left
+        as they were), else a new one, kept as a spare when recycled."""
+        spares = self._spares
+        for i in range(len(spares)):
+            if self._spare_unused(i):  # counted before any local refers to it
+                spare = spares[i]
+                if spare.shape == self.out_shape and spare.dtype == self.dtype and spare.flags.c_contiguous \
+                        and spare.flags.writeable and not weakref.getweakrefcount(spare):
+                    spares.append(spares.pop(i))  # the newest now
+                    return spare
+                del spare
+        out = np.empty(self.out_shape, dtype=self.dtype)
+        if self._recycle:
+            spares.append(out)
+            del spares[:-SPARE_OUTPUTS]  # the oldest, if any, is its holder's now
+        return out
+
+    def _spare_unused(self, i):
+        """Whether the job's reference is the only one to its spare ``i``
+        (the count of :class:`_SpareProbe`, the same expression)."""
+        return sys.getrefcount(self._spares[i]) <= _UNUSED_REFS
+
     def _set_pyramid(self, pyramid):
         """Point the kernel at ``pyramid`` (its arguments follow cval),
         unless it already is, with as many levels."""
@@ -197,7 +267,7 @@ class ClJob:
         """Run the kernel as set into a new output array and read it back
         (and ``pyramid``'s need flag before it: :meth:`DevicePyramid.read_need`)."""
         cl, be = self.backend._cl, self.backend
-        out = np.empty(self.out_shape, dtype=self.dtype)
+        out = self._output()
         if self._zero_copy:  # the kernel writes `out` itself
             dst = cl.Buffer(be.context, cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=out)
             self._kernel.set_arg(4, dst)

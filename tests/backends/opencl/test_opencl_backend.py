@@ -10,6 +10,7 @@ FPIWARP_REQUIRE_BACKENDS lists opencl.
 """
 
 import dataclasses
+import weakref
 
 import numpy as np
 import pytest
@@ -386,6 +387,100 @@ def test_large_outputs_are_written_in_place_and_small_ones_copied(backend, rng, 
         job = backend.prepare_warp(image, shape, order=1, mode="constant", cval=np.zeros(3))
         assert job._zero_copy == (image.nbytes >= ocl.ZERO_COPY_MIN_BYTES)
         assert_close_to_numpy(image, sample_fpi, order=1, mode="constant", cval=0)
+
+
+@pytest.mark.parametrize(("shape", "dtype"), [((1, 3), np.uint8), ((1, 4), np.uint8), ((3, 5, 3), np.uint16),
+                                             ((40, 56, 3), np.float32)])
+def test_sources_read_in_place_warp_as_uploaded_ones(backend, rng, monkeypatch, shape, dtype):
+    """On a device sharing host memory the kernel reads a source of
+    IMAGE_SLACK bytes or more where it lies (its 32-bit loads never run past
+    the last byte), a smaller one from an upload: both give what the
+    uploaded source gives, bit for bit, at every order and mode."""
+    from fpiwarp.backends.opencl import prepared
+
+    if not backend.zero_copy:
+        pytest.skip("the device does not share host memory")
+    image = test_image(rng, dtype, shape[2] if len(shape) == 3 else 1, shape=shape[:2])
+    image = image.reshape(*shape[:2], -1)
+    f = FPI([[0, 0], [9, 0], [9, 9], [0, 9]], [[0.3, 0.2], [9.4, -0.3], [9.2, 9.5], [-0.4, 8.7]])
+    for order, mode in [(0, "edge"), (1, "constant"), (3, "reflect"), (1, "wrap")]:
+        kw = {"order": order, "mode": mode, "cval": np.full(image.shape[2], 2.0)}
+        monkeypatch.setattr(backend, "_jobs", prepared.JobCache())
+        in_place = backend.warp_image(image, f, shape[:2], **kw)
+        (job,) = [backend._jobs.lookup(k, None) for k in backend._jobs.keys()]
+        assert job._src_in_place == (image.nbytes >= prepared.IMAGE_SLACK)
+        with monkeypatch.context() as m:
+            m.setattr(backend, "zero_copy", False)
+            m.setattr(backend, "_jobs", prepared.JobCache())
+            uploaded = backend.warp_image(image, f, shape[:2], **kw)
+        np.testing.assert_array_equal(in_place, uploaded)
+
+
+def test_large_outputs_are_recycled_only_once_dropped(opencl_backend, rng, sample_fpi, monkeypatch):
+    """An output of RECYCLE_MIN_BYTES or more is reused by a later call
+    once nothing refers to it: a result held (or a view of it, or a weak
+    reference) keeps its pixels through later calls, every result is the
+    warp of its own image, and a loop that holds each result until the next
+    call allocates two arrays."""
+    from fpiwarp.backends.opencl import prepared
+
+    if prepared._UNUSED_REFS is None:
+        pytest.skip("no reference counts in this interpreter")
+    monkeypatch.setattr(prepared, "RECYCLE_MIN_BYTES", 1000)  # the 40 x 56 RGB float32 outputs (27 KB)
+    a, b = (test_image(rng, np.float32, 3) for _ in range(2))
+    expected = {id(img): fpiwarp.warp_image(img, sample_fpi, backend="numpy") for img in (a, b)}
+    allocated = []
+    real_empty = prepared.np.empty
+
+    def counting_empty(*args, **kw):
+        allocated.append(args)
+        return real_empty(*args, **kw)
+
+    monkeypatch.setattr(prepared.np, "empty", counting_empty)
+
+    def check(result, img):
+        np.testing.assert_allclose(result, expected[id(img)], atol=2e-3)
+
+    warper = fpiwarp.Warper(sample_fpi, backend=opencl_backend)
+    out = None
+    for img in (a, b, a, b, a):
+        out = warper(img)
+        check(out, img)
+    assert len(allocated) == 2
+    del out
+
+    warper = fpiwarp.Warper(sample_fpi, backend=opencl_backend)
+    allocated.clear()
+    held = warper(a)
+    first = held.copy()
+    again = warper(b)  # `held` is held: a new array
+    assert again is not held and len(allocated) == 2
+    np.testing.assert_array_equal(held, first)
+    check(again, b)
+    del again
+    for img in (a, b, a):  # each result dropped: `again`'s array, reused
+        check(warper(img), img)
+    assert len(allocated) == 2
+    view = warper(b)[5:, :, 1]
+    check(warper(a), a)  # both spares are held (`held`, the view's array): a new one
+    check(view.base, b)
+    assert len(allocated) == 3
+    del view
+    result = warper(b)  # the view's array, free again: reused
+    assert len(allocated) == 3
+    result.flags.writeable = False
+    del result
+    check(warper(a), a)  # a read-only array is not written: the other spare
+    assert len(allocated) == 3
+    result = warper(b)
+    ref = weakref.ref(result)
+    del result
+    kept = warper(a)  # nor one with a weak reference: a new one
+    assert len(allocated) == 4 and kept.flags.writeable
+    assert ref() is not None and ref() is not kept
+    check(ref(), b)
+    check(kept, a)
+    np.testing.assert_array_equal(held, first)
 
 
 def test_device_choice(monkeypatch, opencl_backend):
