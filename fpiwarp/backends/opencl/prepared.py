@@ -85,9 +85,11 @@ class _SpareProbe:
 
 #: The reference count :meth:`ClJob._spare_unused` reads for a spare that
 #: only the job holds (interpreters count stack references differently);
-#: None where the interpreter has no reference counts (recycling is off).
+#: None where the interpreter has no exact reference counts (recycling is
+#: off): other than CPython, and CPython without its GIL (free-threaded
+#: builds count references per thread).
 _UNUSED_REFS = _SpareProbe().count(0) if hasattr(sys, "getrefcount") and \
-    sys.implementation.name == "cpython" else None
+    sys.implementation.name == "cpython" and getattr(sys, "_is_gil_enabled", lambda: True)() else None
 
 
 def job_key(image, output_shape, order, mode, cval, antialias, kind):
