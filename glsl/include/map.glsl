@@ -321,6 +321,13 @@ vec2 fpw_stage_of(vec2 z, int base, int core, int n_regions) {
         }
     }
     if (best > 0.0) return outside;  // the reference's final where(best > 0, ...)
+#ifdef FPW_REGION_PASS
+    // the region pass of a split draw (fpiwarp/backends/gl/band.py): the
+    // seeded stage's other pixels are left to the full program's draw over
+    // the band, so that this program holds none of the Newton code (llvmpipe
+    // runs an if's body for every SIMD group, under a mask)
+    if (seeded) return vec2(fpw_nan());
+#endif
     vec4 scale = fpw_row(base + FPW_ROW_SCALE);  // k1, k2
     vec4 post = fpw_row(base + FPW_ROW_POST);    // s2, q2
     vec2 p = fpw_pre(z, base);
