@@ -60,6 +60,7 @@ from ..backends.gl import (
     GLWarper,
     MeshBuffers,
     ProgramKey,
+    band,
     bound_framebuffer,
     coarse,
     draw_culled_mesh,
@@ -355,7 +356,8 @@ class Renderer:
             set_uniform(prog, "fpw_viewport", (float(viewport[2]), float(viewport[3])))
         else:
             shading["flags"] += seeded
-            prog = self.warper.program(ProgramKey(FULLSCREEN, glsl.PREVIEW_FRAG, **shading))
+            key = ProgramKey(FULLSCREEN, glsl.PREVIEW_FRAG, **shading)
+            prog = self.warper.program(key)
             set_uniform(prog, "fpw_view", tuple(float(v) for v in self.view_params(viewport, y_down)))
             if seeded:  # a Newton map's coarse pass (fpiwarp.backends.gl.coarse)
                 coarse.prepare(self.warper, prog, kind, self.view_params(viewport, y_down), viewport)
@@ -374,7 +376,11 @@ class Renderer:
         if method == "mesh":
             self._draw_mesh(prog, cval4 if c in (2, 4) else bg, y_down)
         else:
-            self.warper.fullscreen_vao(prog).render(moderngl.TRIANGLES, vertices=3)
+            vao = self.warper.fullscreen_vao(prog)
+            draw = lambda: vao.render(moderngl.TRIANGLES, vertices=3)  # noqa: E731
+            if seeded:  # the band's split draw (fpiwarp.backends.gl.band)
+                draw = band.split(self.warper, key, prog, draw)
+            draw()
         if self.handles or self.outline:
             self._draw_overlays(viewport, y_down)
 

@@ -16,6 +16,8 @@ layout(location = 0) out vec4 fpw_out_xa;
 layout(location = 1) out vec4 fpw_out_b;
 
 void main() {
+    // the pixels that read node (i, j) lie within COARSE_STEP pixels of it in x and y
+    fpw_node_reach = float(FPW_COARSE_STEP) * length(fpw_view.zw);
     fpw_map(fpw_view.xy + fpw_view.zw * (float(FPW_COARSE_STEP) * (FPW_FRAG_XY - 0.5)));
     fpw_out_xa = vec4(fpw_node_x, fpw_node_a);
     fpw_out_b = vec4(fpw_node_b, 0.0, 0.0);

@@ -273,6 +273,24 @@ vec2 fpw_pre(vec2 z, int base) {
 #ifdef FPW_COARSE_PASS
 bool fpw_node_done = false;
 vec2 fpw_node_x, fpw_node_a, fpw_node_b;
+// How far (output units) from a node the pixels that read it lie, set by
+// coarse.frag; a node of the block's first stage that one of its regions
+// holds deeper than that (and a margin for float32 rounding) is read by no
+// pixel the regions leave: its solve is skipped, its record NaN. (It is
+// inside a loop, so that on llvmpipe a SIMD group of such nodes runs none
+// of it: an if's body runs under a mask, a loop stops when no lane is left.)
+float fpw_node_reach = -1.0;
+
+bool fpw_node_unread(vec2 z, int base, int n_regions) {
+    bool unread = false;
+    for (int r = 0; r < n_regions; ++r) {
+        vec4 on = fpw_rows[base + FPW_ROW_REGIONS + 2 * r];  // origin, normal
+        float depth = fpw_cmul(z - on.xy, fpw_conj(on.zw)).x;
+        float margin = fpw_node_reach + 1e-4 * (length(z) + length(on.xy) + 1.0);
+        unread = unread || (fpw_node_reach >= 0.0 && depth > margin * length(on.zw));
+    }
+    return unread;
+}
 
 void fpw_coarse_node(vec2 z, int base, int n, bool paired, int iters) {
     vec2 x = fpw_newton(fpw_pre(z, base), base, n, paired, iters, fpw_row(base + FPW_ROW_L3).z);
@@ -300,7 +318,12 @@ vec2 fpw_stage_of(vec2 z, int base, int core, int n_regions) {
 #ifdef FPW_COARSE_PASS
     if (fpw_node_done) return z;
     if (newton) {
-        fpw_coarse_node(z, base, n, core == FPW_CORE_TPS_PAIRS_INVERSE, iters);
+        fpw_node_x = fpw_node_a = fpw_node_b = vec2(fpw_nan());
+        bool solve = !(base == 1 && fpw_node_unread(z, base, n_regions));
+        for (int once = 0; once < 1 && solve; ++once) {
+            fpw_coarse_node(z, base, n, core == FPW_CORE_TPS_PAIRS_INVERSE, iters);
+        }
+        fpw_node_done = true;
         return z;
     }
 #endif
@@ -321,6 +344,13 @@ vec2 fpw_stage_of(vec2 z, int base, int core, int n_regions) {
         }
     }
     if (best > 0.0) return outside;  // the reference's final where(best > 0, ...)
+#ifdef FPW_REGION_PASS
+    // the region pass of a split draw (fpiwarp/backends/gl/band.py): the
+    // seeded stage's other pixels are left to the full program's draw over
+    // the band, so that this program holds none of the Newton code (llvmpipe
+    // runs an if's body for every SIMD group, under a mask)
+    if (seeded) return vec2(fpw_nan());
+#endif
     vec4 scale = fpw_row(base + FPW_ROW_SCALE);  // k1, k2
     vec4 post = fpw_row(base + FPW_ROW_POST);    // s2, q2
     vec2 p = fpw_pre(z, base);

@@ -25,7 +25,7 @@ import numpy as np
 from ... import glsl
 from ...arrays.kinds import array_info
 from ...errors import ArgumentError, DeviceMismatchError
-from . import coarse
+from . import band, coarse
 from .pyramid import PYRAMID_UNIT, build_atlas, set_pyramid_values, upload_atlas
 
 #: Texture dtype -> (image dtype, sampler source kind, fragment output, output scale).
@@ -122,9 +122,12 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
         src.use(0)
         fbo.viewport = (0, 0, ow, oh)
         fbo.use()
-        if coarse.FLAG in key.flags:  # a Newton map: seeded as the host warp's draw is
+        vao = warper.fullscreen_vao(prog)
+        draw = lambda: vao.render(moderngl.TRIANGLES, vertices=3)  # noqa: E731
+        if coarse.FLAG in key.flags:  # a Newton map: seeded and split as the host warp's draw is
             coarse.prepare(warper, prog, stages, (0.0, 0.0, 1.0, 1.0), (0, 0, ow, oh))
-        warper.fullscreen_vao(prog).render(moderngl.TRIANGLES, vertices=3)
+            draw = band.split(warper, key, prog, draw)
+        draw()
     finally:
         src.filter, src.repeat_x, src.repeat_y = saved
         warper.targets.dummy.use()

@@ -22,7 +22,7 @@ from ... import glsl
 from ...block import describe
 from ...block.coarse import newton_stage
 from ...validation import check_mode, check_order
-from . import coarse, readback
+from . import band, coarse, readback
 from .context import bound_framebuffer, create_context
 from .mesh import MeshBuffers, draw_culled_mesh, grid_mesh
 from .programs import FULLSCREEN, MAX_ROWS, ProgramCache, ProgramKey, set_uniform
@@ -121,6 +121,7 @@ class GLWarper:
         self.pyramids = PyramidCache(self.ctx)
         self.short_map = False  # set by set_map
         self.newton_map = False  # set by set_map
+        self.block, self.block_kind = None, None  # set by set_map
 
     # ---- the texture unit's anisotropic filter (hardware_filter with antialias)
     def _clamped_anisotropy(self, value):
@@ -200,6 +201,8 @@ class GLWarper:
             raise ValueError("parameter block rows do not match its header's number of stages")
         kind = describe(block)  # refuses unknown cores before anything is uploaded
         self.ubo.write(block.tobytes())
+        #: the block just uploaded and its kind (the band's split draw reads its regions)
+        self.block, self.block_kind = block, kind
         self.ubo.bind_to_uniform_block(self.ubo_binding)
         #: the block just uploaded is a specialized short map (see BlockKind.is_short)
         self.short_map = self.specialize and kind.is_short
@@ -400,7 +403,7 @@ class GLWarper:
             def draw():
                 vao.render(moderngl.TRIANGLES, vertices=3)
             if coarse.FLAG in key.flags:
-                draw = coarse.seeded_draw(self, prog, stages, draw)
+                draw = coarse.seeded_draw(self, prog, stages, band.split(self, key, prog, draw))
         try:
             if tiled:
                 atlas = None
