@@ -121,6 +121,7 @@ class GLWarper:
         self.pyramids = PyramidCache(self.ctx)
         self.short_map = False  # set by set_map
         self.newton_map = False  # set by set_map
+        self.map_block = None  # set by set_map
 
     # ---- the texture unit's anisotropic filter (hardware_filter with antialias)
     def _clamped_anisotropy(self, value):
@@ -205,6 +206,8 @@ class GLWarper:
         self.short_map = self.specialize and kind.is_short
         #: the block just uploaded has a Newton core (a per-pixel draw may take the coarse pass)
         self.newton_map = newton_stage(kind) is not None
+        #: the block just uploaded (float32), for the coarse pass's choice (coarse.picks)
+        self.map_block = block
         return tuple((s.core, s.n_regions) for s in kind.stages) if self.specialize else None
 
     def set_view(self, progs, origin, size):
@@ -376,7 +379,8 @@ class GLWarper:
         out = np.empty((oh, ow, c), dtype=image.dtype)
         tiled = h > self.max_size or w > self.max_size or antialias and max(atlas_layout(h, w)[0]) > self.max_size
         hw = hardware_filter and not tiled
-        key, fill_key, packs = self._program_keys(image, order, mode, mesh, hw, tiled, stages, antialias)
+        seeded = self.newton_map and coarse.COARSE_PASS and coarse.picks(self.map_block, (oh, ow))
+        key, fill_key, packs = self._program_keys(image, order, mode, mesh, hw, tiled, stages, antialias, seeded)
         prog = self.program(key)
         top = float(np.iinfo(image.dtype).max) if image.dtype.kind == "u" else 0.0
         cval4 = tuple(np.resize(cval, 4).astype(float))
