@@ -27,7 +27,8 @@ band:
   overestimates by up to 0.36 where the band reaches far from the
   spline's centers and underestimates by at most 0.18: below the share
   needed by more than
-  :data:`SCREEN_MARGIN` the warp solves per pixel without the second step;
+  :data:`SCREEN_MARGIN` the warp solves per pixel without the second step,
+  above it by :data:`SURE_MARGIN` or more it takes the pass without it;
 * :func:`seed_pass_share` (about 1 ms): the cells' nodes solved by Newton
   as the pass solves them, and the check at :data:`SAMPLE_OFFSETS` ² pixels
   of each: the pass itself on a sample (off by 0.04 on average, at most
@@ -62,6 +63,9 @@ ALWAYS = False
 #: How far below the break-even curvature_share may lie and still be
 #: checked by seed_pass_share (it underestimated by at most 0.2).
 SCREEN_MARGIN = 0.25
+#: How far above the share needed curvature_share must lie for the pass
+#: to be taken without seed_pass_share (it overestimated by at most 0.36).
+SURE_MARGIN = 0.4
 #: Node cells of the band sampled (evenly by index among the band's).
 SAMPLE_CELLS = 16
 #: Pixel offsets within a sampled cell (x and y) at which seed_pass_share checks.
@@ -87,6 +91,8 @@ def takes_coarse_pass(block, width, height, backend="default"):
     line = share_needed(block, width, height, backend)
     if screen < line - SCREEN_MARGIN:
         return False
+    if screen >= line + SURE_MARGIN:
+        return True
     return seed_pass_share(block, width, height) >= line
 
 

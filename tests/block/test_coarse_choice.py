@@ -46,12 +46,14 @@ def _measured_share(transform, size, every=3):
 def test_the_predicted_share_follows_the_reference(size, side, shift):
     """The sampled prediction within 0.2 of the float32 reference's share
     (measured over 27 maps: mean error 0.04, at most 0.16), the curvature
-    screen never below it by more than SCREEN_MARGIN."""
+    screen never below it by more than SCREEN_MARGIN nor above it by
+    SURE_MARGIN (where the rule trusts the screen alone)."""
     f = _quad(size, side, shift)
     measured = _measured_share(f, size)
     block = f.inverse.params()
     assert abs(seed_pass_share(block, size, size) - measured) <= 0.2
-    assert curvature_share(block, size, size) >= measured - coarse_choice.SCREEN_MARGIN
+    screen = curvature_share(block, size, size)
+    assert measured - coarse_choice.SCREEN_MARGIN <= screen < measured + coarse_choice.SURE_MARGIN
 
 
 def test_the_share_grows_with_the_map_scale():
