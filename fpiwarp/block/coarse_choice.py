@@ -38,8 +38,6 @@ Both are remembered for the last few (block, shape): a bound map warping
 many images decides once.
 """
 
-import functools
-
 import numpy as np
 
 from .coarse import coarse_shape, newton_stage
@@ -75,6 +73,29 @@ SAMPLE_OFFSETS = tuple(range(1, COARSE_STEP, 2))
 CANDIDATE_CELLS = 4096
 #: Output pixels between the points whose difference gives the target's steps per pixel.
 STEP_EPS = 1e-3
+
+
+#: (block, shape) answers each estimate remembers, least recently used dropped.
+REMEMBERED = 64
+
+
+def _remembered(fn):
+    """``fn`` of hashable arguments, its last REMEMBERED answers kept (the
+    block layer imports only numpy: a dict keeps insertion order);
+    ``.cache_clear()`` forgets them, ``.__wrapped__`` is ``fn``."""
+    kept = {}
+
+    def remembered(*key):
+        if key in kept:
+            kept[key] = kept.pop(key)  # now the most recent
+            return kept[key]
+        value = kept[key] = fn(*key)
+        if len(kept) > REMEMBERED:
+            del kept[next(iter(kept))]
+        return value
+
+    remembered.cache_clear, remembered.__wrapped__, remembered.__doc__ = kept.clear, fn, fn.__doc__
+    return remembered
 
 
 def takes_coarse_pass(block, width, height, backend="default"):
@@ -188,13 +209,13 @@ def _band_cells(stage, width, height):
     return ci[pick], cj[pick], band.size / ci.size
 
 
-@functools.lru_cache(maxsize=64)
+@_remembered
 def _band(data, shape, width, height):
     """:func:`_band_cells` of a block's bytes (a Newton map's), remembered."""
     return _band_cells(_Stage(data, shape), width, height)
 
 
-@functools.lru_cache(maxsize=64)
+@_remembered
 def _curvature_share(data, shape, width, height):
     stage = _Stage(data, shape)
     if stage.k is None:
@@ -221,7 +242,7 @@ def _curvature_share(data, shape, width, height):
     return float(passed.mean())
 
 
-@functools.lru_cache(maxsize=64)
+@_remembered
 def _seed_pass_share(data, shape, width, height):
     stage = _Stage(data, shape)
     if stage.k is None:
