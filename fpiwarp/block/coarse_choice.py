@@ -28,7 +28,10 @@ band:
   spline's centers and underestimates by at most 0.18: below the share
   needed by more than
   :data:`SCREEN_MARGIN` the warp solves per pixel without the second step,
-  above it by :data:`SURE_MARGIN` or more it takes the pass without it;
+  above it by :data:`SURE_MARGIN` or more (or at :data:`SURE_SHARE`) it
+  takes the pass without it, and for a band of fewer than
+  :data:`SAMPLE_MIN_BAND_PIXELS` pixels it solves per pixel otherwise
+  (the second step would cost about what the pass saves);
 * :func:`seed_pass_share` (about 1 ms): the cells' nodes solved by Newton
   as the pass solves them, and the check at :data:`SAMPLE_OFFSETS` ² pixels
   of each: the pass itself on a sample (off by 0.04 on average, at most
@@ -64,6 +67,16 @@ SCREEN_MARGIN = 0.25
 #: How far above the share needed curvature_share must lie for the pass
 #: to be taken without seed_pass_share (it overestimated by at most 0.36).
 SURE_MARGIN = 0.4
+#: ... or where it reaches this share (the most it overestimated was 0.36).
+SURE_SHARE = 0.95
+#: Band pixels below which the screen decides alone (the pass only where
+#: it is sure, above): there seed_pass_share (about 1 ms of CPU) costs
+#: about what the pass could save (a 128² warp with a band of half the
+#: frame saved 0.7-1.3 ms where nearly every seed passed; batches of 64
+#: fresh 128² maps took 1.17x the per-pixel CPU time with the sample
+#: asked, and the screen alone against the share needed overestimated
+#: enough to take the pass for half of them, 1.2x).
+SAMPLE_MIN_BAND_PIXELS = 16384
 #: Node cells of the band sampled (evenly by index among the band's).
 SAMPLE_CELLS = 16
 #: Pixel offsets within a sampled cell (x and y) at which seed_pass_share checks.
@@ -112,9 +125,17 @@ def takes_coarse_pass(block, width, height, backend="default"):
     line = share_needed(block, width, height, backend)
     if screen < line - SCREEN_MARGIN:
         return False
-    if screen >= line + SURE_MARGIN:
+    if screen >= min(line + SURE_MARGIN, SURE_SHARE):
         return True
+    if _band_pixels(block, width, height) < SAMPLE_MIN_BAND_PIXELS:  # the sample would cost about what it could save
+        return False
     return seed_pass_share(block, width, height) >= line
+
+
+def _band_pixels(block, width, height):
+    """About how many output pixels the band of ``block`` covers."""
+    block = np.ascontiguousarray(block, dtype=np.float32)
+    return _band(block.tobytes(), block.shape, int(width), int(height))[2] * int(width) * int(height)
 
 
 def share_needed(block, width, height, backend="default"):

@@ -127,7 +127,7 @@ def _paths(backend, call, monkeypatch):
 
 SIZE = 128
 #: (map, whether the rule picks the pass at SIZE² on opencl and gl)
-FOLLOWED = [(_quad(SIZE, 0.4, 0.06), False), (_quad(SIZE, 0.7, 0.02), True)]
+FOLLOWED = [(_quad(SIZE, 0.4, 0.06), False), (_quad(SIZE, 0.7, 0.01), True)]
 
 
 @pytest.mark.parametrize("backend", ["opencl", "gl"])
