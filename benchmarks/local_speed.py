@@ -8,7 +8,9 @@ The map is speed.py's ``LocalDeformation`` (edges 1 and 3 of a quad over the
 middle of the frame); calls are interleaved round by round (best of
 ``rounds``): the FPI warp, the LocalDeformation with the coarse pass and
 without, uint8 RGB, order 1, on the opencl backend
-(``fpiwarp.backends.opencl.prepared.COARSE_PASS`` off when its job is made)
+(``fpiwarp.backends.opencl.prepared.COARSE_PASS`` off during the 'before'
+calls, ``fpiwarp.block.coarse_choice.ALWAYS`` on: the pass where it is on,
+whatever the rule would pick; benchmarks/local_pick.py measures the rule)
 and the gl backend, and the gl preview's exact frame (speed.py's: Renderer,
 method "pixel", offscreen, waited for), the gl ones with
 ``fpiwarp.backends.gl.coarse.COARSE_PASS`` off during the 'before' calls.
@@ -39,6 +41,7 @@ import fpiwarp
 from fpiwarp.backends import get_backend
 from fpiwarp.backends.gl import coarse as gl_coarse
 from fpiwarp.backends.opencl import prepared
+from fpiwarp.block import coarse_choice
 from fpiwarp.block.coarse import coarse_pass, pixel_seeds
 from fpiwarp.block.describe import describe, stage_rows
 from fpiwarp.block.layout import PAIRED_CORES, ROW_L3, ROW_MU3, ROW_MU12
@@ -64,26 +67,17 @@ BATCH_TITLE = "## Batches of local deformations"
 
 
 def _bound(transform, image, coarse):
-    """A warp of ``transform`` bound on opencl, its job made with the coarse pass on or off."""
-    be = get_backend("opencl")
-    was, prepared.COARSE_PASS = prepared.COARSE_PASS, coarse
-    try:
-        bound = be.bind(transform)
-        bound.warp_image(image, image.shape[:2], order=1, mode="constant", cval=(0, 0, 0))
-    finally:
-        prepared.COARSE_PASS = was
-    return lambda: bound.warp_image(image, image.shape[:2], order=1, mode="constant", cval=(0, 0, 0))
+    """A warp of ``transform`` bound on opencl, each call with the coarse
+    pass on (forced: coarse_choice.ALWAYS) or off (read per call)."""
+    bound = get_backend("opencl").bind(transform)
+    call = _patched(lambda: bound.warp_image(image, image.shape[:2], order=1, mode="constant", cval=(0, 0, 0)),
+                    prepared, COARSE_PASS=coarse)
+    return _patched(call, coarse_choice, ALWAYS=True)
 
 
 def _gl_call(call, coarse):
-    """``call`` with the gl coarse pass on or off (read per draw)."""
-    def run():
-        was, gl_coarse.COARSE_PASS = gl_coarse.COARSE_PASS, coarse
-        try:
-            return call()
-        finally:
-            gl_coarse.COARSE_PASS = was
-    return run
+    """``call`` with the gl coarse pass on (forced: coarse_choice.ALWAYS) or off (read per draw)."""
+    return _patched(_patched(call, gl_coarse, COARSE_PASS=coarse), coarse_choice, ALWAYS=True)
 
 
 def _gl_warp(transform, image):
@@ -173,11 +167,14 @@ def run_batch(n, height, width, rounds):
         def loop(name=name):
             return [fpiwarp.warp_image(im, m, backend=name) for im, m in zip(stack, maps)]
 
-        calls[f"{name} loop of warp_image (coarse pass)"] = loop
+        def forced(call):  # the pass forced where on (the rule not asked: benchmarks/local_pick.py measures it)
+            return _patched(call, coarse_choice, ALWAYS=True)
+
+        calls[f"{name} loop of warp_image (coarse pass)"] = forced(loop)
         calls[f"{name} batch, per-pixel Newton (before)"] = _patched(batch, module, COARSE_PASS=False)
-        calls[f"{name} batch, coarse pass (after)"] = _patched(batch, module, COARSE_PASS=True)
+        calls[f"{name} batch, coarse pass (after)"] = forced(_patched(batch, module, COARSE_PASS=True))
         calls[f"{name} batch, coarse pass, one image per {'chunk' if name == 'opencl' else 'draw'}"] = \
-            _patched(_patched(batch, one[0], **one[1]), module, COARSE_PASS=True)
+            forced(_patched(_patched(batch, one[0], **one[1]), module, COARSE_PASS=True))
     times, results = interleaved(calls, rounds)
     for name in ("opencl", "gl"):  # the batch is the loop's result, bit for bit
         assert np.array_equal(np.stack(results[f"{name} loop of warp_image (coarse pass)"]),

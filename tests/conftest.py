@@ -81,6 +81,15 @@ def make_gl_warper(gl_backend):
 
 
 @pytest.fixture
+def coarse_always(monkeypatch):
+    """Every Newton map's warp takes the coarse pass (fpiwarp.block.coarse_choice.ALWAYS):
+    tests of the pass itself on maps the rule leaves to per-pixel Newton."""
+    from fpiwarp.block import coarse_choice
+
+    monkeypatch.setattr(coarse_choice, "ALWAYS", True)
+
+
+@pytest.fixture
 def rng():
     return np.random.default_rng(12345)
 

@@ -31,6 +31,10 @@ px either way: the pixels that fall back).
 Only the block's first Newton stage is seeded (a compound with two local
 deformations solves its later ones per pixel as before); map_points keeps
 the per-point solve (its points need not lie on a grid).
+
+Whether a warp takes the pass at all is decided per map and output shape
+by :func:`fpiwarp.block.coarse_choice.takes_coarse_pass`, which every
+backend asks: the pass wins only where most seeds pass the check.
 """
 
 import numpy as np

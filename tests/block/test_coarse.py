@@ -92,7 +92,7 @@ def test_a_failed_node_leaves_its_pixels_to_the_per_point_solve():
 
 @pytest.mark.parametrize("backend", ["opencl", "gl"])
 @pytest.mark.parametrize("height, width", [(64, 129), (120, 257)])
-def test_the_warp_samples_where_the_reference_says(backend, height, width):
+def test_the_warp_samples_where_the_reference_says(backend, height, width, coarse_always):
     """A float32 image equal to its x (and y) coordinate, sampled at order 1,
     reads back the source position of each output pixel inside the picture:
     the OpenCL and GL warps' coarse-seeded positions are the reference's (at
@@ -141,7 +141,7 @@ def _assert_records_close(got, want, read):
 
 
 @pytest.mark.parametrize("specialize", [True, False])
-def test_gl_coarse_pass_writes_the_reference_records(make_gl_warper, specialize):
+def test_gl_coarse_pass_writes_the_reference_records(make_gl_warper, specialize, coarse_always):
     """The GL warp's node textures hold coarse.coarse_pass's records (the
     specialized and the run-time stage walk alike) at every node that a
     pixel the regions leave reads."""

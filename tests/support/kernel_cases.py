@@ -188,18 +188,18 @@ def compare_warp(backend, img, transform, shape, order, mode, cval, levels=1.0):
     return got, want
 
 
-def takes_coarse_pass(transform, backend):
-    """Whether a plain (not antialiased) warp by ``transform`` on
-    ``backend`` ("opencl" or "gl") takes the coarse pass
+def takes_coarse_pass(transform, backend, shape):
+    """Whether a plain (not antialiased) warp by ``transform`` to ``shape``
+    (rows, cols) on ``backend`` ("opencl" or "gl") takes the coarse pass
     (fpiwarp/block/coarse.py): a map with a Newton core while the backend's
-    COARSE_PASS switch is on. Its positions then lie nearer the exact
-    inverse than a per-pixel solve's, agreeing with one within a level."""
-    from fpiwarp.block.coarse import newton_stage  # noqa: PLC0415
-    from fpiwarp.block.describe import describe  # noqa: PLC0415
+    COARSE_PASS switch is on, where the rule picks it
+    (fpiwarp/block/coarse_choice.py). Its positions then lie nearer the
+    exact inverse than a per-pixel solve's, agreeing with one within a level."""
+    from fpiwarp.block.coarse_choice import takes_coarse_pass as rule  # noqa: PLC0415
     from support.batch_cases import coarse_switch  # noqa: PLC0415
 
     try:  # the backend's switch (its module needs the backend's library)
         on = coarse_switch(backend).COARSE_PASS
     except ImportError:
         return False
-    return on and newton_stage(describe(np.asarray(transform.inverse.params(), np.float32))) is not None
+    return on and rule(np.asarray(transform.inverse.params(), np.float32), shape[1], shape[0], backend)

@@ -99,6 +99,24 @@ def kind_groups(stack, n, specialize, by_newton=False):
     return [(*k, idx.astype(np.intp), True) for k, idx in stack.groups(key)]
 
 
+def by_choice(groups, stack, output_shape):
+    """:func:`kind_groups`' groups split by whether their maps take the
+    coarse pass to ``output_shape`` (:func:`.coarse.picks`, per map as
+    their single warps): (..., own, seeded), the maps taking it first."""
+    for stages, short, newton, idx, own in groups:
+        if not (newton and coarse.COARSE_PASS):
+            yield stages, short, newton, idx, own, False
+            continue
+        blocks = [stack.array[k, : stack.rows[k]] for k in (idx if own else [0])]
+        picked = np.array([coarse.picks(b, output_shape) for b in blocks], bool)
+        if not own:
+            yield stages, short, newton, idx, own, bool(picked[0])
+            continue
+        for choice in (True, False):
+            if (picked == choice).any():
+                yield stages, short, newton, idx[picked == choice], own, choice
+
+
 def batch_program(warper, key, single=False):
     """The program of ``key`` compiled for batches (FPW_BATCH), its blocks'
     storage buffer at :data:`BATCH_BINDING`; ``single``: for draws of one
@@ -151,9 +169,10 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
     if warper.targets.owns(caller):  # never leave a cached target bound (see GLWarper)
         caller = warper.targets.dummy
     try:
-        for stages, short, newton, idx, own in kind_groups(stack_of_blocks, n, warper.specialize, by_newton=True):
+        groups = kind_groups(stack_of_blocks, n, warper.specialize, by_newton=True)
+        for stages, short, newton, idx, own, seeded in by_choice(groups, stack_of_blocks, (oh, ow)):
             warper.short_map, warper.newton_map = short, newton  # as set_map sets them for one of the maps
-            key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=True)
+            key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=seeded)
             seeded = coarse.FLAG in key.flags
             per_draw = images_per_draw(warper, (h, w, c), (oh, ow), stack.dtype.itemsize, seeded)
             draws = -(-len(idx) // per_draw)

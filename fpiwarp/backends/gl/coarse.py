@@ -20,10 +20,13 @@ import moderngl
 
 from ... import glsl
 from ...block.coarse import coarse_shape
+from ...block.coarse_choice import takes_coarse_pass
 from .context import bound_framebuffer
 from .programs import FULLSCREEN, ProgramKey, set_uniform
 
-#: False: every pixel solves alone (read per draw: benchmarks compare the two).
+#: False: every pixel solves alone (read per draw: benchmarks compare the two);
+#: True: a warp takes the pass where the block's rule picks it
+#: (:func:`picks`, fpiwarp/block/coarse_choice.py).
 COARSE_PASS = True
 #: The define of a per-pixel program seeded by the pass.
 FLAG = "FPW_COARSE"
@@ -36,6 +39,16 @@ def flags(newton_map, antialias=False):
     """The program flags of a per-pixel draw: (FLAG,) for a map with a
     Newton core (``newton_map``), without antialiasing, while COARSE_PASS."""
     return (FLAG,) if COARSE_PASS and newton_map and not antialias else ()
+
+
+def picks(block, output_shape):
+    """Whether a warp of ``block`` (a Newton map's float32 block) to
+    ``output_shape`` (rows, cols) takes the pass, by the block's rule for
+    this backend (``takes_coarse_pass``): :func:`flags`' ``newton_map``
+    is its answer and the map's having a Newton core. The preview
+    (fpiwarp.viewer) does not ask: its nodes lie in window pixels under a
+    view that zooms."""
+    return takes_coarse_pass(block, output_shape[1], output_shape[0], "gl")
 
 
 def node_key(stages):

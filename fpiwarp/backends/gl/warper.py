@@ -201,7 +201,8 @@ class GLWarper:
             raise ValueError("parameter block rows do not match its header's number of stages")
         kind = describe(block)  # refuses unknown cores before anything is uploaded
         self.ubo.write(block.tobytes())
-        #: the block just uploaded and its kind (the band's split draw reads its regions)
+        #: the block just uploaded (float32) and its kind (the band's split draw
+        #: reads its regions, the coarse pass's choice coarse.picks the block)
         self.block, self.block_kind = block, kind
         self.ubo.bind_to_uniform_block(self.ubo_binding)
         #: the block just uploaded is a specialized short map (see BlockKind.is_short)
@@ -379,7 +380,8 @@ class GLWarper:
         out = np.empty((oh, ow, c), dtype=image.dtype)
         tiled = h > self.max_size or w > self.max_size or antialias and max(atlas_layout(h, w)[0]) > self.max_size
         hw = hardware_filter and not tiled
-        key, fill_key, packs = self._program_keys(image, order, mode, mesh, hw, tiled, stages, antialias)
+        seeded = self.newton_map and coarse.COARSE_PASS and coarse.picks(self.block, (oh, ow))
+        key, fill_key, packs = self._program_keys(image, order, mode, mesh, hw, tiled, stages, antialias, seeded)
         prog = self.program(key)
         top = float(np.iinfo(image.dtype).max) if image.dtype.kind == "u" else 0.0
         cval4 = tuple(np.resize(cval, 4).astype(float))

@@ -316,10 +316,12 @@ class Backend:
             self._buffers[key] = buf
         return buf
 
-    def _upload_block(self, transform):
-        """Upload the block of ``transform``; return it and its kind options.
-        A block no kernel knows raises ValueError before the upload."""
-        block = np.ascontiguousarray(transform.params(), dtype=np.float32)
+    def _upload_block(self, transform, block=None):
+        """Upload the block of ``transform`` (``block``: its float32 block,
+        already packed); return it and its kind options. A block no kernel
+        knows raises ValueError before the upload."""
+        if block is None:
+            block = np.ascontiguousarray(transform.params(), dtype=np.float32)
         data = block.tobytes()
         cached = self._block_cache
         if cached is not None and cached[0] == data:  # unchanged: no upload
@@ -417,7 +419,7 @@ class Backend:
     def warp_image(self, image, transform, output_shape, *, order, mode, cval, antialias=False):
         block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
         with self._lock:
-            job = self._jobs.get(self, image, output_shape, order, mode, cval, antialias, self.block_kind(block))
+            job = self._jobs.get(self, image, output_shape, order, mode, cval, antialias, self.block_kind(block), block)
             job.set_block(block)
             return job.run(image, transform.inverse)
 
@@ -514,9 +516,10 @@ class DeviceWarp:
         from output to source) and select the kernel built for its kind."""
         be = self.backend
         (h, w, _), (oh, ow) = self.image_shape, self.output_shape
-        block, kind = be._upload_block(transform.inverse)
+        host_block = np.ascontiguousarray(transform.inverse.params(), dtype=np.float32)
+        block, kind = be._upload_block(transform.inverse, host_block)
         name, options, self.local = tiled_program(be, *self._sampling, kind)
-        coarse = takes_coarse(kind, self._pyramid is not None)
+        coarse = takes_coarse(kind, self._pyramid is not None, host_block, (oh, ow))
         if coarse:  # as the host warp's job (prepared.ClJob)
             options = (*options, COARSE_OPTION)
         kern = be.kernel(name, options)

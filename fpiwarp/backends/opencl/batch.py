@@ -187,9 +187,8 @@ class BatchLaunch:
         constant-memory load of blocks) after ``wait_for``; their events."""
         cl, be, events = self.cl, self.backend, []
         sizes = (np.int32(self.w), np.int32(self.h), dst, np.int32(self.ow), np.int32(self.oh), self.cval4)
-        for kind, rows, blocks, which in _launches(be, self.groups, a, b):
+        for kind, rows, blocks, which, coarse in self._by_choice(_launches(be, self.groups, a, b)):
             name, options, local = tiled_program(be, *self.sampling, kind)  # the single warp's tiles
-            coarse = takes_coarse(kind, self.antialias)
             if coarse:  # as the single warp's job (prepared.ClJob)
                 options = (*options, COARSE_OPTION)
             kern = be.kernel(name, (*options, "-DFW_BATCH=1"))
@@ -202,6 +201,20 @@ class BatchLaunch:
             events.append(cl.enqueue_nd_range_kernel(queue, kern, (*global_size(local, (self.oh, self.ow)), len(which)),
                                                      (*local, 1), wait_for=wait_for))
         return events
+
+    def _by_choice(self, launches):
+        """The launches split by whether their maps take the coarse pass
+        (:func:`~.prepared.takes_coarse`, per map as their single warps):
+        (kind, rows, blocks, which, coarse), the maps taking it first."""
+        shape = (self.oh, self.ow)
+        for kind, rows, blocks, which in launches:
+            if rows == 0:  # one block for all the images
+                yield kind, rows, blocks, which, takes_coarse(kind, self.antialias, blocks[0], shape)
+                continue
+            coarse = np.array([takes_coarse(kind, self.antialias, blk, shape) for blk in blocks], bool)
+            for choice in (True, False):
+                if (coarse == choice).any():
+                    yield kind, rows, blocks[coarse == choice], which[coarse == choice], choice
 
     def _coarse_pass(self, queue, node, blocks, which, rows, count, local_x):
         """Enqueue the coarse pass (kernel ``node``) of a launch's ``count`` maps (their

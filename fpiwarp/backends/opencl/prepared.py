@@ -33,6 +33,7 @@ import weakref
 import numpy as np
 
 from ...block.coarse import coarse_shape
+from ...block.coarse_choice import takes_coarse_pass
 from ...block.layout import COARSE_FLOATS
 from ...errors import SizeLimitError
 from ..lru import LruCache
@@ -47,10 +48,11 @@ IMAGE_SLACK = 4
 #: out: wrapping each new output array in a buffer (zero copy) costs about
 #: a millisecond of driver set-up per call on PoCL, more than the copy.
 ZERO_COPY_MIN_BYTES = 1 << 20
-#: A Newton map's warp runs the coarse pass (fpiwarp/block/coarse.py) first;
-#: False: each pixel solves alone (read when a job is made, a batch
-#: launched or a device warp's map set: benchmarks compare the two,
-#: benchmarks/local_speed.py).
+#: A Newton map's warp runs the coarse pass (fpiwarp/block/coarse.py) first
+#: where the block's rule picks it for the map and output shape
+#: (fpiwarp/block/coarse_choice.py); False: each pixel solves alone (read
+#: when a job is looked up, a batch launched or a device warp's map set:
+#: benchmarks compare the two, benchmarks/local_speed.py).
 COARSE_PASS = True
 #: The build option of a warp taking the coarse pass (warp_image then
 #: reads the records coarse_pass writes: kernels/opencl/fpiwarp.cl).
@@ -92,17 +94,19 @@ _UNUSED_REFS = _SpareProbe().count(0) if hasattr(sys, "getrefcount") and \
     sys.implementation.name == "cpython" and getattr(sys, "_is_gil_enabled", lambda: True)() else None
 
 
-def job_key(image, output_shape, order, mode, cval, antialias, kind):
+def job_key(image, output_shape, order, mode, cval, antialias, kind, coarse=False):
     """What a job is made for; calls with equal keys share it."""
     return (image.shape, image.dtype.str, tuple(output_shape), int(order), mode,
-            tuple(float(v) for v in cval), bool(antialias), kind)
+            tuple(float(v) for v in cval), bool(antialias), kind, bool(coarse))
 
 
-def takes_coarse(kind, antialias):
-    """Whether a warp of a map of ``kind`` (``kind_options``) takes the
-    coarse pass: a Newton map, not antialiased, while COARSE_PASS (read at
-    each call: benchmarks toggle it)."""
-    return COARSE_PASS and not antialias and has_newton(kind)
+def takes_coarse(kind, antialias, block, output_shape):
+    """Whether a warp of float32 ``block`` (its kind ``kind``, ``kind_options``)
+    to ``output_shape`` (rows, cols) takes the coarse pass: a Newton map,
+    not antialiased, while COARSE_PASS (read at each call: benchmarks
+    toggle it), where the block's rule picks it (``takes_coarse_pass``)."""
+    return (COARSE_PASS and not antialias and has_newton(kind)
+            and takes_coarse_pass(block, output_shape[1], output_shape[0], "opencl"))
 
 
 def records_bytes(output_shape, count=1):
@@ -123,16 +127,20 @@ class JobCache(LruCache):
     def __init__(self, size=MAX_JOBS):
         super().__init__(size)
 
-    def get(self, backend, image, output_shape, order, mode, cval, antialias, kind):
-        key = job_key(image, output_shape, order, mode, cval, antialias, kind)
-        return self.lookup(key, lambda: ClJob(backend, image, output_shape, order, mode, cval, antialias, kind))
+    def get(self, backend, image, output_shape, order, mode, cval, antialias, kind, block):
+        """The job of a warp of float32 ``block`` (of kind ``kind``): with or
+        without the coarse pass as :func:`takes_coarse` picks for it."""
+        coarse = takes_coarse(kind, antialias, block, output_shape)
+        key = job_key(image, output_shape, order, mode, cval, antialias, kind, coarse)
+        return self.lookup(key, lambda: ClJob(backend, image, output_shape, order, mode, cval, antialias, kind,
+                                              coarse))
 
 
 class ClJob:
     """A warp of one kind of call (see the module docstring); :meth:`run`
     under the backend's lock."""
 
-    def __init__(self, backend, image, output_shape, order, mode, cval, antialias, kind):
+    def __init__(self, backend, image, output_shape, order, mode, cval, antialias, kind, coarse=False):
         be = self.backend = backend
         cl = be._cl
         h, w, c = image.shape
@@ -143,7 +151,7 @@ class ClJob:
         name, options, self._local = tiled_program(be, image.dtype, c, order, mode, ow, antialias, kind)
         #: a Newton map's coarse pass (fpiwarp/block/coarse.py): its kernel, the records' buffer
         self._coarse = None
-        if takes_coarse(kind, antialias):
+        if coarse:  # takes_coarse's choice for the job's maps
             options = (*options, COARSE_OPTION)
         program = be.kernel(name, options).program
         self._kernel = cl.Kernel(program, name)  # its own: arguments stay set between calls
@@ -302,6 +310,6 @@ class BoundMap:
     def warp_image(self, image, output_shape, *, order, mode, cval, antialias=False):
         be = self.backend
         with be._lock:
-            job = self._jobs.get(be, image, output_shape, order, mode, cval, antialias, self.kind)
+            job = self._jobs.get(be, image, output_shape, order, mode, cval, antialias, self.kind, self.block)
             job.set_block(self.block)
             return job.run(image, self.inverse)

@@ -158,7 +158,7 @@ def tune(backend, candidates=CANDIDATES, wide=False):
             backend._tile, backend.lanes = tile, lanes
             if not usable(backend, tile):
                 continue
-            job = type(backend._jobs)().get(backend, image, (h, w), 1, "constant", np.zeros(c), False, kind)
+            job = type(backend._jobs)().get(backend, image, (h, w), 1, "constant", np.zeros(c), False, kind, block)
             job.set_block(block)
             job.run(image)  # the warm-up: builds
             jobs[tile, lanes] = job
