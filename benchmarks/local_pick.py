@@ -31,7 +31,7 @@ from fpiwarp.augment import RandomLocal
 from fpiwarp.block import coarse_choice as block_coarse
 from fpiwarp.block.coarse_choice import curvature_share, seed_pass_share, takes_coarse_pass
 
-from .common import test_image, write_json, write_text
+from .common import machine_facts, machine_markdown, test_image, write_json, write_text
 from .local_speed import evaluations
 from .speed import local_deformation
 
@@ -214,6 +214,7 @@ def main(argv=None):
     parser.add_argument("--batches", action="store_true", help="also batches of RandomLocal maps, measured first")
     args = parser.parse_args(argv)
     backends = [b for b in args.backends.split(",") if b]
+    info = machine_facts()
     load = os.getloadavg()
     print(f"load {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, rounds {args.rounds}")
     print(header(backends))
@@ -226,8 +227,8 @@ def main(argv=None):
         out = Path(args.out)
         write_text(out / "local_pick.md", f"# The coarse pass's choice per map\n\nload {load[0]:.2f} before,"
                    f" {load_after[0]:.2f} after; best of {args.rounds} interleaved rounds\n\n{header(backends)}\n"
-                   f"{body}\n")
-        write_json(out / "local_pick.json", {"load": [load, load_after], "rows": rows})
+                   f"{body}\n\n{machine_markdown(info)}\n")
+        write_json(out / "local_pick.json", {"machine": info, "load": [load, load_after], "rows": rows})
 
 
 if __name__ == "__main__":
