@@ -55,8 +55,21 @@ from .reference import complex_at, evaluate_stage, pre_mobius, region_winner, se
 #: over map families and sizes (benchmarks/local_pick.py; the benchmark's
 #: map, band 20 %: opencl between 384² (42 % pass, per-pixel / coarse CPU
 #: time 1.06) and 256² (21 %, 0.86); gl between 768² (85 %, 1.14) and 512²
-#: (61 %, 0.93)). Backends not listed: "default".
-BREAK_EVEN = {"opencl": 0.35, "gl": 0.62, "default": 0.4}
+#: (61 %, 0.93)). gl's single warps since their seeded draws are split
+#: (fpiwarp/backends/gl/band.py: the region pass, then the band, and no
+#: node solved where a region holds every pixel reading it), from one quiet
+#: run of benchmarks/local_pick.py on the merged code (results/local_pick.md):
+#: the benchmark's map between 384² (42 %, 0.98) and 512² (61 %, 1.16), and
+#: no node cost beyond the band's (:data:`NODE_COST`); "gl batch": gl's
+#: batches, drawn unsplit, as measured before. Backends not listed: "default".
+BREAK_EVEN = {"opencl": 0.35, "gl": 0.45, "gl batch": 0.62, "default": 0.4}
+#: Backends whose share needed does not grow as the band shrinks: gl's
+#: split draw solves only the nodes the band reads, and its per-pixel draw
+#: (unsplit) runs the Newton code for every SIMD group, region pixels
+#: included, so a small band does not favour per-pixel Newton there (a
+#: 24 px quad in 512², band 5 %, 15 % of its seeds passing: the pass took
+#: 0.88 of per-pixel's CPU time; a 48 px quad in 1080², band 4 %: 0.69).
+NODE_COST = {"gl": False}
 #: True: every Newton map's warp takes the pass, the rule not asked (tests
 #: of the pass itself, and benchmarks' forced "after"; the backends'
 #: COARSE_PASS switches still turn it off).
@@ -147,9 +160,13 @@ def share_needed(block, width, height, backend="default"):
     the band's): a band of 4 % of 1080² needs 0.39 more."""
     block = np.ascontiguousarray(block, dtype=np.float32)
     band = _band(block.tobytes(), block.shape, int(width), int(height))[2]
+    if band <= 0:
+        return np.inf
+    line = BREAK_EVEN.get(backend, BREAK_EVEN["default"])
+    if not NODE_COST.get(backend, True):
+        return line
     ny, nx = coarse_shape(width, height)
-    nodes = ny * nx / (int(width) * int(height))
-    return BREAK_EVEN.get(backend, BREAK_EVEN["default"]) + (nodes / band if band > 0 else np.inf)
+    return line + ny * nx / (int(width) * int(height)) / band
 
 
 def curvature_share(block, width, height):

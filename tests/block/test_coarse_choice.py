@@ -165,3 +165,18 @@ def test_a_batch_takes_each_maps_own_path(backend, monkeypatch):
     for k, f in enumerate(maps):
         picked = dict((id(m), p) for m, p in FOLLOWED)[id(f)]
         np.testing.assert_array_equal(got[k], on[k] if picked else off[k])
+
+
+def test_the_share_needed_grows_as_the_band_shrinks_only_where_nodes_cost_beyond_it():
+    """opencl solves every node: a smaller band (the same quad in a larger
+    frame) needs a larger share; gl's split draw solves only the band's
+    nodes: its share needed is its break-even whatever the band."""
+    from fpiwarp.block.coarse_choice import NODE_COST, share_needed
+
+    wide_band, narrow_band = _quad(512, 0.6, 0.03).inverse.params(), _quad(512, 0.1, 0.03).inverse.params()
+    for backend in BREAK_EVEN:
+        wide, narrow = share_needed(wide_band, 512, 512, backend), share_needed(narrow_band, 512, 512, backend)
+        if NODE_COST.get(backend, True):
+            assert BREAK_EVEN[backend] < wide < narrow
+        else:
+            assert wide == narrow == BREAK_EVEN[backend]

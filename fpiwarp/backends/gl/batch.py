@@ -108,7 +108,7 @@ def by_choice(groups, stack, output_shape):
             yield stages, short, newton, idx, own, False
             continue
         blocks = [stack.array[k, : stack.rows[k]] for k in (idx if own else [0])]
-        picked = np.array([coarse.picks(b, output_shape) for b in blocks], bool)
+        picked = np.array([coarse.picks(b, output_shape, batch=True) for b in blocks], bool)
         if not own:
             yield stages, short, newton, idx, own, bool(picked[0])
             continue

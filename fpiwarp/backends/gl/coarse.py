@@ -41,14 +41,15 @@ def flags(newton_map, antialias=False):
     return (FLAG,) if COARSE_PASS and newton_map and not antialias else ()
 
 
-def picks(block, output_shape):
+def picks(block, output_shape, batch=False):
     """Whether a warp of ``block`` (a Newton map's float32 block) to
     ``output_shape`` (rows, cols) takes the pass, by the block's rule for
     this backend (``takes_coarse_pass``): :func:`flags`' ``newton_map``
     is its answer and the map's having a Newton core. The preview
     (fpiwarp.viewer) does not ask: its nodes lie in window pixels under a
-    view that zooms."""
-    return takes_coarse_pass(block, output_shape[1], output_shape[0], "gl")
+    view that zooms. ``batch``: for a batch's draw, which is not split
+    (:mod:`.band`), by the rule's "gl batch" break-even."""
+    return takes_coarse_pass(block, output_shape[1], output_shape[0], "gl batch" if batch else "gl")
 
 
 def node_key(stages):

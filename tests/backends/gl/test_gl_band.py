@@ -75,7 +75,8 @@ def _split_off(monkeypatch):
 
 @pytest.mark.parametrize("shape", [(90, 140, 3), (240, 200, 1), (130, 190, 4)])
 @pytest.mark.parametrize("order", [0, 1, 3])
-def test_split_warp_equals_the_single_draw(gl_backend, monkeypatch, rng, shape, order):
+def test_split_warp_equals_the_single_draw(gl_backend, monkeypatch, rng, shape, order, coarse_always):
+    """A seeded warp (the pass forced: these small maps' rule solves per pixel) splits, bit for bit."""
     img = (rng.random(shape) * 255).astype(np.uint8)
     m = _local(shape[0], shape[1], order % 2)
     calls = []
