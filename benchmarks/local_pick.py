@@ -106,8 +106,7 @@ def measure(cases, backends, rounds):
     for family, (h, w), f in cases:
         block = f.inverse.params()
         ev = evaluations(f, h, w)
-        block_coarse._curvature_share.cache_clear()
-        block_coarse._seed_pass_share.cache_clear()
+        block_coarse.forget()
         t0 = time.perf_counter()
         takes_coarse_pass(block, w, h, "opencl")  # uncached: the screen, and the sample where it asks
         rule_ms = (time.perf_counter() - t0) * 1e3
@@ -142,8 +141,7 @@ def measure_batches(backends, rounds, sizes=(128, 256), n=64, shift=(0.1, 0.03))
             stack = np.stack([test_image(s, s, np.uint8, np.random.default_rng(k)) for k in range(n)])
             blocks = [np.ascontiguousarray(f.inverse.params(), np.float32) for f in maps]
             ref = [evaluations(f, s, s)["check_passes"] for f in maps[:8]]
-            block_coarse._curvature_share.cache_clear()
-            block_coarse._seed_pass_share.cache_clear()
+            block_coarse.forget()
             t0 = time.perf_counter()
             for b in blocks:
                 takes_coarse_pass(b, s, s, "opencl")
@@ -161,8 +159,7 @@ def measure_batches(backends, rounds, sizes=(128, 256), n=64, shift=(0.1, 0.03))
                     c()
                 best = {m: (np.inf, np.inf) for m in calls}
                 for _ in range(rounds):
-                    block_coarse._curvature_share.cache_clear()  # fresh maps each call, as augmentation's
-                    block_coarse._seed_pass_share.cache_clear()
+                    block_coarse.forget()  # fresh maps each call, as augmentation's
                     for m, c in calls.items():
                         w0, c0 = time.perf_counter(), time.process_time()
                         c()

@@ -124,6 +124,14 @@ def _remembered(fn):
     return remembered
 
 
+def forget():
+    """Forget the remembered estimates (of every block and shape): the next
+    question about any map estimates again (benchmarks time the rule on
+    fresh maps with it)."""
+    for remembered in (_band, _curvature_share, _seed_pass_share):
+        remembered.cache_clear()
+
+
 def takes_coarse_pass(block, width, height, backend="default"):
     """Whether a warp by ``block`` to ``width`` x ``height`` on ``backend``
     (a :data:`BREAK_EVEN` name) takes the coarse pass: the block has a

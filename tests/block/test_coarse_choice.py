@@ -180,3 +180,16 @@ def test_the_share_needed_grows_as_the_band_shrinks_only_where_nodes_cost_beyond
             assert BREAK_EVEN[backend] < wide < narrow
         else:
             assert wide == narrow == BREAK_EVEN[backend]
+
+
+def test_answers_are_remembered_until_forgotten(monkeypatch):
+    """A bound map asks once per shape; forget() makes the next question estimate again."""
+    coarse_choice.forget()
+    made = []
+    band_cells = coarse_choice._band_cells
+    monkeypatch.setattr(coarse_choice, "_band_cells", lambda *a: made.append(1) or band_cells(*a))
+    block = _quad(256, 0.4, 0.06).inverse.params()
+    first = takes_coarse_pass(block, 256, 256, "opencl")
+    assert takes_coarse_pass(block, 256, 256, "opencl") == first and len(made) == 1
+    coarse_choice.forget()
+    assert takes_coarse_pass(block, 256, 256, "opencl") == first and len(made) == 2
