@@ -117,14 +117,7 @@ def measure(cases, backends, rounds):
             calls = {m: CALLS[name](f, image, m) for m in ("off", "on", "rule")}
             for c in calls.values():
                 c()  # build and warm
-            best = {m: (np.inf, np.inf) for m in calls}
-            for _ in range(rounds):
-                for m, c in calls.items():
-                    w0, c0 = time.perf_counter(), time.process_time()
-                    c()
-                    dw, dc = time.perf_counter() - w0, time.process_time() - c0
-                    best[m] = (min(best[m][0], dw), min(best[m][1], dc))
-            row[name] = {m: {"wall_ms": b[0] * 1e3, "cpu_ms": b[1] * 1e3} for m, b in best.items()}
+            row[name] = _best_of(calls, rounds)
             row[name]["chosen"] = "coarse" if takes_coarse_pass(block, w, h, name) else "per-pixel"
         rows.append(row)
         print(_line(row, backends), flush=True)
@@ -157,20 +150,28 @@ def measure_batches(backends, rounds, sizes=(128, 256), n=64, shift=(0.1, 0.03))
                          for m in ("off", "on", "rule")}
                 for c in calls.values():
                     c()
-                best = {m: (np.inf, np.inf) for m in calls}
-                for _ in range(rounds):
-                    block_coarse.forget()  # fresh maps each call, as augmentation's
-                    for m, c in calls.items():
-                        w0, c0 = time.perf_counter(), time.process_time()
-                        c()
-                        dw, dc = time.perf_counter() - w0, time.process_time() - c0
-                        best[m] = (min(best[m][0], dw), min(best[m][1], dc))
-                row[name] = {m: {"wall_ms": b[0] * 1e3, "cpu_ms": b[1] * 1e3} for m, b in best.items()}
+                row[name] = _best_of(calls, rounds, block_coarse.forget)  # fresh maps each round, as augmentation's
                 chosen = sum(block_coarse.takes_coarse_pass(b, s, s, name) for b in blocks)
                 row[name]["chosen"] = f"coarse {chosen}/{n}"
             rows.append(row)
             print(_line(row, backends), flush=True)
     return rows
+
+
+def _best_of(calls, rounds, before_round=None):
+    """{name: {wall_ms, cpu_ms}}: the best of ``rounds`` interleaved rounds
+    of ``calls`` ({name: callable}), wall and process CPU time;
+    ``before_round`` (if any) is called before each round, off the clock."""
+    best = {m: (np.inf, np.inf) for m in calls}
+    for _ in range(rounds):
+        if before_round is not None:
+            before_round()
+        for m, c in calls.items():
+            w0, c0 = time.perf_counter(), time.process_time()
+            c()
+            dw, dc = time.perf_counter() - w0, time.process_time() - c0
+            best[m] = (min(best[m][0], dw), min(best[m][1], dc))
+    return {m: {"wall_ms": b[0] * 1e3, "cpu_ms": b[1] * 1e3} for m, b in best.items()}
 
 
 def _switch(name):

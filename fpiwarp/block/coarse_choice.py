@@ -261,57 +261,59 @@ def _band(data, shape, width, height):
     return _band_cells(_Stage(data, shape), width, height)
 
 
-@_remembered
-def _curvature_share(data, shape, width, height):
-    stage = _Stage(data, shape)
-    if stage.k is None:
-        return None
+def _band_share(fn):
+    """``fn(stage, i, j, width, height)``, the share of a sample of the band
+    cells (i, j) of a block's bytes, as a remembered function of (data,
+    shape, width, height), in numpy's errstate "ignore": None for a block
+    without a Newton core, 0.0 for an empty band."""
+    def share(data, shape, width, height):
+        stage = _Stage(data, shape)
+        if stage.k is None:
+            return None
+        with np.errstate(all="ignore"):
+            i, j, _ = _band(data, shape, width, height)
+            return fn(stage, i, j, width, height) if i.size else 0.0
+    share.__doc__ = fn.__doc__
+    return _remembered(share)
+
+
+@_band_share
+def _curvature_share(stage, i, j, width, height):
     h = COARSE_STEP
-    with np.errstate(all="ignore"):
-        i, j, _ = _band(data, shape, width, height)
-        if i.size == 0:
-            return 0.0
-        centre = np.minimum(h * i + h / 2, width - 1) + 1j * np.minimum(h * j + h / 2, height - 1)
-        t = pre_mobius(stage.rows, stage.input(centre))
-        steps = [(pre_mobius(stage.rows, stage.input(centre + e)) - t) / abs(e) for e in (STEP_EPS, 1j * STEP_EPS)]
-        fz, fzb, fzz, fzzb, fzbzb = _derivatives(stage.spline, stage.seed(t))
-        jac = np.abs(fz) ** 2 - np.abs(fzb) ** 2
-        a, b = np.conj(fz) / jac, -fzb / jac
-        second = []
-        for tau in steps:
-            d = a * tau + b * np.conj(tau)
-            second.append(fzz * d * d + 2 * fzzb * np.abs(d) ** 2 + fzbzb * np.conj(d) ** 2)
-        frac = np.arange(h)
-        weight = frac * (h - frac)
-        r = -0.5 * (weight[None, None, :] * second[0][:, None, None] + weight[None, :, None] * second[1][:, None, None])
-        passed = np.abs(r) <= stage.tol  # NaN: False
+    centre = np.minimum(h * i + h / 2, width - 1) + 1j * np.minimum(h * j + h / 2, height - 1)
+    t = pre_mobius(stage.rows, stage.input(centre))
+    steps = [(pre_mobius(stage.rows, stage.input(centre + e)) - t) / abs(e) for e in (STEP_EPS, 1j * STEP_EPS)]
+    fz, fzb, fzz, fzzb, fzbzb = _derivatives(stage.spline, stage.seed(t))
+    jac = np.abs(fz) ** 2 - np.abs(fzb) ** 2
+    a, b = np.conj(fz) / jac, -fzb / jac
+    second = []
+    for tau in steps:
+        d = a * tau + b * np.conj(tau)
+        second.append(fzz * d * d + 2 * fzzb * np.abs(d) ** 2 + fzbzb * np.conj(d) ** 2)
+    frac = np.arange(h)
+    weight = frac * (h - frac)
+    r = -0.5 * (weight[None, None, :] * second[0][:, None, None] + weight[None, :, None] * second[1][:, None, None])
+    passed = np.abs(r) <= stage.tol  # NaN: False
     return float(passed.mean())
 
 
-@_remembered
-def _seed_pass_share(data, shape, width, height):
-    stage = _Stage(data, shape)
-    if stage.k is None:
-        return None
+@_band_share
+def _seed_pass_share(stage, i, j, width, height):
     h = COARSE_STEP
-    with np.errstate(all="ignore"):
-        i, j, _ = _band(data, shape, width, height)
-        if i.size == 0:
-            return 0.0
-        corners = ((0, 0), (1, 0), (0, 1), (1, 1))
-        nodes = np.concatenate([h * (i + di) + 1j * h * (j + dj) for di, dj in corners])
-        t = pre_mobius(stage.rows, stage.input(nodes))
-        x = _solve(stage.spline, t, stage.seed(t), stage.stage.newton_iters, stage.tol)
-        x00, x10, x01, x11 = (x[m * i.size:(m + 1) * i.size, None] for m in range(4))
-        off = np.asarray(SAMPLE_OFFSETS)
-        u, v = (g.reshape(-1) for g in np.meshgrid(off, off))
-        fx, fy = u / h, v / h
-        bottom, top = x00 + fx * (x10 - x00), x01 + fx * (x11 - x01)
-        seed = (bottom + fy * (top - bottom)).reshape(-1)
-        px, py = (h * i[:, None] + u).reshape(-1), (h * j[:, None] + v).reshape(-1)
-        z = stage.input(px + 1j * py)
-        inside = (px < width) & (py < height) & stage.band(z)
-        passed = np.abs(_value(stage.spline, seed) - pre_mobius(stage.rows, z)) <= stage.tol  # NaN seeds: False
+    corners = ((0, 0), (1, 0), (0, 1), (1, 1))
+    nodes = np.concatenate([h * (i + di) + 1j * h * (j + dj) for di, dj in corners])
+    t = pre_mobius(stage.rows, stage.input(nodes))
+    x = _solve(stage.spline, t, stage.seed(t), stage.stage.newton_iters, stage.tol)
+    x00, x10, x01, x11 = (x[m * i.size:(m + 1) * i.size, None] for m in range(4))
+    off = np.asarray(SAMPLE_OFFSETS)
+    u, v = (g.reshape(-1) for g in np.meshgrid(off, off))
+    fx, fy = u / h, v / h
+    bottom, top = x00 + fx * (x10 - x00), x01 + fx * (x11 - x01)
+    seed = (bottom + fy * (top - bottom)).reshape(-1)
+    px, py = (h * i[:, None] + u).reshape(-1), (h * j[:, None] + v).reshape(-1)
+    z = stage.input(px + 1j * py)
+    inside = (px < width) & (py < height) & stage.band(z)
+    passed = np.abs(_value(stage.spline, seed) - pre_mobius(stage.rows, z)) <= stage.tol  # NaN seeds: False
     return float(passed[inside].mean()) if inside.any() else 0.0
 
 
