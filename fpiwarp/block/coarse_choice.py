@@ -46,7 +46,7 @@ import numpy as np
 from .coarse import coarse_shape, newton_stage
 from .describe import describe, stage_rows
 from .layout import COARSE_STEP, PAIRED_CORES, ROW_CENTERS, ROW_L3, ROW_L12, ROW_MU3, ROW_MU12
-from .reference import complex_at, evaluate_stage, pre_mobius, region_winner, seed_correction
+from .reference import complex_at, evaluate_stage, newton, pre_mobius, region_winner, seed_correction, tps_core
 
 #: The predicted share of band pixels whose seed passes the check from
 #: which a backend's warp of a band covering its output takes the coarse
@@ -218,7 +218,8 @@ class _Stage:
             return
         self.rows, self.stage = stage_rows(self.block, self.k), self.kind.stages[self.k]
         self.tol = self.rows[ROW_L3, 2]
-        self.spline = _spline64(self.rows, self.stage.n_centers, self.stage.core in PAIRED_CORES)
+        self.paired = self.stage.core in PAIRED_CORES
+        self.spline = _spline64(self.rows, self.stage.n_centers, self.paired)
 
     def input(self, q):
         """Complex output pixels q at the Newton stage's input."""
@@ -303,7 +304,7 @@ def _seed_pass_share(stage, i, j, width, height):
     corners = ((0, 0), (1, 0), (0, 1), (1, 1))
     nodes = np.concatenate([h * (i + di) + 1j * h * (j + dj) for di, dj in corners])
     t = pre_mobius(stage.rows, stage.input(nodes))
-    x = _solve(stage.spline, t, stage.seed(t), stage.stage.newton_iters, stage.tol)
+    x = newton(t, stage.rows, stage.stage.n_centers, stage.stage.newton_iters, stage.tol, np.float64, stage.paired)
     x00, x10, x01, x11 = (x[m * i.size:(m + 1) * i.size, None] for m in range(4))
     off = np.asarray(SAMPLE_OFFSETS)
     u, v = (g.reshape(-1) for g in np.meshgrid(off, off))
@@ -313,7 +314,8 @@ def _seed_pass_share(stage, i, j, width, height):
     px, py = (h * i[:, None] + u).reshape(-1), (h * j[:, None] + v).reshape(-1)
     z = stage.input(px + 1j * py)
     inside = (px < width) & (py < height) & stage.band(z)
-    passed = np.abs(_value(stage.spline, seed) - pre_mobius(stage.rows, z)) <= stage.tol  # NaN seeds: False
+    value = tps_core(seed, stage.rows, stage.stage.n_centers, np.float64, stage.paired)[0]
+    passed = np.abs(value - pre_mobius(stage.rows, z)) <= stage.tol  # NaN seeds: False
     return float(passed[inside].mean()) if inside.any() else 0.0
 
 
@@ -338,18 +340,6 @@ def _radial(spline, p):
     return d, a, np.log(np.where(a > 0, a, 1))
 
 
-def _value(spline, p, derivatives=False):
-    """The float64 spline at complex p, and where ``derivatives`` its
-    Wirtinger derivatives (f_z, f_zbar) after it (one pass over the centers)."""
-    l1, l2, l3, _, w = spline
-    d, a, lg = _radial(spline, p)
-    val = l1 * p + l2 * np.conj(p) + l3 + (0.5 * a * lg * w).sum(axis=1)
-    if not derivatives:
-        return val
-    gw = 0.5 * (lg + 1) * (a > 0) * w
-    return val, l1 + (gw * np.conj(d)).sum(axis=1), l2 + (gw * d).sum(axis=1)
-
-
 def _derivatives(spline, p):
     """The float64 spline's Wirtinger derivatives at complex p: (f_z,
     f_zbar, f_zz, f_zzbar, f_zbarzbar)."""
@@ -362,18 +352,3 @@ def _derivatives(spline, p):
     half = 0.5 * w
     return (*first, (half * ratio).sum(axis=1), (half * (lg + 2) * hit).sum(axis=1),
             (half * np.conj(ratio)).sum(axis=1))
-
-
-def _solve(spline, target, start, iters, tol):
-    """Newton for spline(x) = target from ``start``, each point stopping
-    once within ``tol`` (as the pass's node solves); NaN where not within
-    after ``iters`` steps."""
-    x = start
-    for _ in range(iters):
-        val, fz, fzb = _value(spline, x, derivatives=True)
-        res = val - target
-        done = np.abs(res) <= tol
-        if done.all():
-            return x
-        x = np.where(done, x, x - (np.conj(fz) * res - fzb * np.conj(res)) / (np.abs(fz) ** 2 - np.abs(fzb) ** 2))
-    return np.where(np.abs(_value(spline, x) - target) <= tol, x, np.nan)
