@@ -95,8 +95,7 @@ def warp_texture(src, transform, output_shape, out, *, order, mode, cval, antial
     _, source, output, scale = FORMATS[src.dtype]
     stages = warper.set_map(transform.inverse.params())
     gather = warper.gather and order == 1 and mode in ("constant", "edge", "wrap")
-    flags = (("FPW_ANTIALIAS",) if antialias else ()) + coarse.flags(
-        warper.newton_map and coarse.COARSE_PASS and coarse.picks(warper.block, (oh, ow)), antialias)
+    flags = (("FPW_ANTIALIAS",) if antialias else ()) + coarse.flags(coarse.chosen(warper, (oh, ow)), antialias)
     key = ProgramKey(FULLSCREEN, glsl.WARP_FRAG, stages=stages, order=order, mode=mode, source=source,
                      gather_channels=c if gather else 0, output=output,
                      flags=flags + (("FPW_OUT_ROUNDED",) if scale != 1.0 else ()))

@@ -52,6 +52,14 @@ def picks(block, output_shape, batch=False):
     return takes_coarse_pass(block, output_shape[1], output_shape[0], "gl batch" if batch else "gl")
 
 
+def chosen(warper, output_shape):
+    """Whether a warp of the block last uploaded to ``warper`` (its
+    ``set_map``) to ``output_shape`` takes the pass: a Newton map, while
+    COARSE_PASS, where :func:`picks` chooses it (asked only then: the
+    choice estimates on the host)."""
+    return warper.newton_map and COARSE_PASS and picks(warper.block, output_shape)
+
+
 def node_key(stages):
     """The program key of the nodes' pass for a block of kind ``stages``."""
     return ProgramKey(FULLSCREEN, glsl.COARSE_FRAG, stages=stages, samples=False, flags=("FPW_COARSE_PASS",))

@@ -380,7 +380,7 @@ class GLWarper:
         out = np.empty((oh, ow, c), dtype=image.dtype)
         tiled = h > self.max_size or w > self.max_size or antialias and max(atlas_layout(h, w)[0]) > self.max_size
         hw = hardware_filter and not tiled
-        seeded = self.newton_map and coarse.COARSE_PASS and coarse.picks(self.block, (oh, ow))
+        seeded = coarse.chosen(self, (oh, ow))
         key, fill_key, packs = self._program_keys(image, order, mode, mesh, hw, tiled, stages, antialias, seeded)
         prog = self.program(key)
         top = float(np.iinfo(image.dtype).max) if image.dtype.kind == "u" else 0.0
