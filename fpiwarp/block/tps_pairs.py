@@ -61,30 +61,70 @@ def pair_logs(e, s, m, dtype):
     return ls, lm, np.where(e < 0, -mag, mag).astype(dtype)
 
 
+#: Points times pairs evaluated in one pass: the pairs lie along a last axis,
+#: so one pass of numpy calls serves every pair (a Python loop over the pairs
+#: made some forty calls per pair, which dominate for the few hundred points
+#: a Newton of fpiwarp.block.coarse_choice evaluates), in chunks of points
+#: that bound the memory.
+CHUNK_ELEMENTS = 1 << 18
+
+
+def _weak(values, other):
+    """Python complex ``values`` (held as complex128) cast as numpy casts a
+    Python complex scalar beside the array ``other`` (NEP 50: to other's
+    complex kind), so that the arrays of pairs compute what the scalars did."""
+    return values.astype(np.result_type(other, 1j))
+
+
+def _sequential_sum(terms, start):
+    """start + terms[..., 0] + terms[..., 1] + ..., added in that order (as
+    the loop over the pairs added them): numpy's accumulate is sequential."""
+    dtype = np.result_type(start, *terms)
+    stacked = np.empty(terms[0].shape[:-1] + (1 + len(terms) * terms[0].shape[-1],), dtype)
+    stacked[..., 0] = start
+    for i, t in enumerate(terms):
+        stacked[..., 1 + i::len(terms)] = t
+    return np.add.accumulate(stacked, axis=-1)[..., -1]
+
+
+def _pairs_chunk(p, c, w, d, b2, dtype):
+    """tps_pairs_core at the points p (m, 1) for the pairs (c, w, d, b2), each (k,)."""
+    q = p - _weak(c, p)
+    q2 = q - _weak(d, q)
+    a = (q.real**2 + q.imag**2).astype(dtype)
+    b = (q2.real**2 + q2.imag**2).astype(dtype)
+    dr, di = d.real.astype(dtype), d.imag.astype(dtype)
+    dd = dr * dr + di * di
+    e = (dd - 2 * (q.real * dr + q.imag * di)).astype(dtype)
+    near_a = a <= b
+    s, m = np.where(near_a, a, b), np.where(near_a, b, a)
+    ls, lm, big_l = pair_logs(e, s, m, dtype)
+    la = np.where(near_a, ls, lm)
+    g1, gn = 0.5 * (la + 1), 0.5 * (lm + 1)
+    qn = np.where(near_a, q, q2)
+    terms = []
+    for plain, paired in ((0.5 * a * la, 0.5 * (e * lm + s * big_l)),
+                          (g1 * np.conj(q), 0.5 * big_l * np.conj(qn) - gn * np.conj(d)),
+                          (g1 * q, 0.5 * big_l * qn - gn * _weak(d, gn))):
+        terms.append((_weak(w, plain) * plain, _weak(b2, paired) * paired))
+    zero = np.zeros(p.shape[:-1], p.dtype)
+    return tuple(_sequential_sum(t, zero) for t in terms)
+
+
 def tps_pairs_core(p, rows, n, dtype, centers_row):
     """The paired TPS core's sum over the ``n`` center rows (n / 2 pairs)
     at complex p, and its Wirtinger derivatives: (val, dz, dzb) without
-    the R-linear part. ``centers_row``: the first center row."""
-    val = np.zeros_like(p)
-    dz = np.zeros_like(p)
-    dzb = np.zeros_like(p)
-    for j in range(0, n, 2):
-        r1, r2 = rows[centers_row + j], rows[centers_row + j + 1]
-        c, w = complex(r1[0], r1[1]), complex(r1[2], r1[3])
-        d, b2 = complex(r2[0], r2[1]), complex(r2[2], r2[3])
-        q = p - c
-        q2 = q - d
-        a = (q.real**2 + q.imag**2).astype(dtype)
-        b = (q2.real**2 + q2.imag**2).astype(dtype)
-        dd = dtype(d.real) * dtype(d.real) + dtype(d.imag) * dtype(d.imag)
-        e = (dd - 2 * (q.real * dtype(d.real) + q.imag * dtype(d.imag))).astype(dtype)
-        near_a = a <= b
-        s, m = np.where(near_a, a, b), np.where(near_a, b, a)
-        ls, lm, big_l = pair_logs(e, s, m, dtype)
-        la = np.where(near_a, ls, lm)
-        val = val + w * (0.5 * a * la) + b2 * (0.5 * (e * lm + s * big_l))
-        g1, gn = 0.5 * (la + 1), 0.5 * (lm + 1)
-        qn = np.where(near_a, q, q2)
-        dz = dz + w * (g1 * np.conj(q)) + b2 * (0.5 * big_l * np.conj(qn) - gn * np.conj(d))
-        dzb = dzb + w * (g1 * q) + b2 * (0.5 * big_l * qn - gn * d)
-    return val, dz, dzb
+    the R-linear part. ``centers_row``: the first center row. Each pair's
+    terms are added in the pairs' order, as a loop over them would."""
+    p = np.asarray(p)
+    pairs = np.asarray(rows[centers_row:centers_row + n], dtype=np.float64)
+    first, second = pairs[0::2], pairs[1::2]
+    c, w = first[:, 0] + first[:, 1] * 1j, first[:, 2] + first[:, 3] * 1j
+    d, b2 = second[:, 0] + second[:, 1] * 1j, second[:, 2] + second[:, 3] * 1j
+    if len(c) == 0:
+        zero = np.zeros_like(p)
+        return zero, zero.copy(), zero.copy()
+    flat = p.reshape(-1, 1)
+    step = max(1, CHUNK_ELEMENTS // len(c))
+    chunks = [_pairs_chunk(flat[i:i + step], c, w, d, b2, dtype) for i in range(0, max(len(flat), 1), step)]
+    return tuple(np.concatenate([ch[k] for ch in chunks]).reshape(p.shape) for k in range(3))

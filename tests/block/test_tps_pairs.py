@@ -51,6 +51,56 @@ def test_paired_terms_are_the_plain_spline_in_float64_with_derivatives(rng):
     np.testing.assert_allclose(evaluate(B.pack([inv], np.float64), q), pts[:200], rtol=0, atol=1e-8)
 
 
+def _pairs_one_by_one(p, rows, n, dtype, first):
+    """The paired core as a loop over the pairs (the sum in the pairs' order)."""
+    from fpiwarp.block.tps_pairs import pair_logs  # noqa: PLC0415
+
+    val, dz, dzb = np.zeros_like(p), np.zeros_like(p), np.zeros_like(p)
+    for j in range(0, n, 2):
+        r1, r2 = rows[first + j], rows[first + j + 1]
+        c, w, d, b2 = complex(r1[0], r1[1]), complex(r1[2], r1[3]), complex(r2[0], r2[1]), complex(r2[2], r2[3])
+        q = p - c
+        q2 = q - d
+        a, b = (q.real**2 + q.imag**2).astype(dtype), (q2.real**2 + q2.imag**2).astype(dtype)
+        dd = dtype(d.real) * dtype(d.real) + dtype(d.imag) * dtype(d.imag)
+        e = (dd - 2 * (q.real * dtype(d.real) + q.imag * dtype(d.imag))).astype(dtype)
+        near_a = a <= b
+        s, m = np.where(near_a, a, b), np.where(near_a, b, a)
+        ls, lm, big_l = pair_logs(e, s, m, dtype)
+        la = np.where(near_a, ls, lm)
+        g1, gn, qn = 0.5 * (la + 1), 0.5 * (lm + 1), np.where(near_a, q, q2)
+        val = val + w * (0.5 * a * la) + b2 * (0.5 * (e * lm + s * big_l))
+        dz = dz + w * (g1 * np.conj(q)) + b2 * (0.5 * big_l * np.conj(qn) - gn * np.conj(d))
+        dzb = dzb + w * (g1 * q) + b2 * (0.5 * big_l * qn - gn * d)
+    return val, dz, dzb
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("chunk", [1, 7, 1 << 18])
+def test_all_pairs_in_one_pass_add_as_the_loop_over_them(rng, monkeypatch, dtype, chunk):
+    """The pairs evaluated along an axis, in chunks of points of any size,
+    sum their terms in the pairs' order: the loop's values (the logarithms
+    of a longer array may round differently in the last bit, so float32
+    values are compared to a few ulps of their terms)."""
+    from fpiwarp.block import tps_pairs  # noqa: PLC0415
+
+    monkeypatch.setattr(tps_pairs, "CHUNK_ELEMENTS", chunk)
+    stage = kernel_cases.tps_pairs_stage()
+    rows = B.pack([stage], dtype)
+    first, n = B.ROW_CENTERS, 2 * len(stage.centers)
+    cdt = np.complex64 if dtype == np.float32 else np.complex128
+    pts = kernel_cases.frame_points(rng, 300)
+    both = np.concatenate([stage.centers, stage.centers + stage.offsets])  # centers hit exactly
+    p = np.concatenate([pts[:, 0] + 1j * pts[:, 1], both]).astype(cdt).reshape(-1, 2)
+    with np.errstate(all="ignore"):
+        got = tps_pairs.tps_pairs_core(p, rows, n, dtype, first)
+        want = _pairs_one_by_one(p, rows, n, dtype, first)
+    for g, w in zip(got, want):
+        assert g.shape == w.shape and g.dtype == w.dtype and np.all(np.isfinite(g))
+        scale = np.max(np.abs(w)) + 1
+        np.testing.assert_allclose(g, w, rtol=0, atol=(1e-5 if dtype == np.float32 else 1e-12) * scale)
+
+
 def test_a_center_without_partner_gives_the_plain_term(rng):
     """d = 0, b2 = 0: the plain term (float32: to the rounding of a sum
     accumulated in another order)."""
