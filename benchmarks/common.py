@@ -165,7 +165,8 @@ def machine_facts(backends=True):
 
 #: The line the CPU speed tables end with: the profile of their misses
 #: (results/cpu_profile.md, written by hand from sampled profiles).
-CPU_PROFILE_POINTER = "Where the time goes on this machine's CPU, and what was tried: cpu_profile.md."
+CPU_PROFILE_POINTER = ("Where the time goes on each kind of CPU (AVX2, AVX-512), and what was tried: "
+                       "benchmarks/results/cpu_profile.md.")
 
 
 def machine_line(info):
