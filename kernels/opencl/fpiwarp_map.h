@@ -495,25 +495,46 @@ FW_FN fw_c fw_map(fw_block_t block, fw_c z)
  * the block's first Newton core, then that core's solve from the table
  * seed, its regions skipped (coarse.coarse_pass); x NaN where it fails or
  * the inverse Jacobian is not finite. */
+/* Whether a node at z of a block's first stage (whose input is the output
+ * position) is read by no pixel that the stage's regions leave: one of its
+ * n_regions regions holds it deeper than the farthest pixel that reads it
+ * (FW_COARSE_STEP sqrt 2 away: the four cells around it) and a margin for
+ * float32 rounding; as glsl's fpw_node_unread. Its solve is skipped. */
+FW_FN bool fw_node_unread(fw_rows_t rows, int n_regions, fw_c z)
+{
+    bool unread = false;
+    for (int r = 0; r < FW_MAX_REGIONS; ++r) {
+        fw_c o = fw_at(rows, FW_ROW_REGIONS + 2 * r, 0), nrm = fw_at(rows, FW_ROW_REGIONS + 2 * r, 2);
+        float depth = fw_mul(fw_sub(z, o), fw_conj(nrm)).re;
+        float margin = (float)FW_COARSE_STEP * 1.41421356f + 1e-4f * (sqrt(fw_abs2(z)) + sqrt(fw_abs2(o)) + 1.0f);
+        unread = unread || (r < n_regions && depth > margin * sqrt(fw_abs2(nrm)));
+    }
+    return unread;
+}
+
 FW_FN fw_seed_t fw_coarse_node(fw_block_t block, fw_c z)
 {
     fw_seed_t rec = {{NAN, NAN}, {NAN, NAN}, {NAN, NAN}};
     bool before = true; /* no Newton core yet (folds away with the kinds known) */
+    bool first = true;  /* the block's first stage: its input is the output position */
 #define FW_APPLY_NODE(rows, core, n, n_regions, iters)                                                  \
     if (before && (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE)) {                 \
-        bool paired = core == FW_CORE_TPS_PAIRS_INVERSE;                                                \
-        fw_c x = fw_newton(fw_pre(rows, z), rows, n, paired, iters, rows[4 * FW_ROW_L3 + 2]), dz, dzb;  \
-        fw_tps(x, rows, n, paired, &dz, &dzb);                                                          \
-        float inv = 1.0f / (fw_abs2(dz) - fw_abs2(dzb));                                                \
-        rec.a = fw_scale(fw_conj(dz), inv);                                                             \
-        rec.b = fw_scale(dzb, -inv);                                                                    \
-        bool ok = isfinite(x.re) && isfinite(x.im) && isfinite(rec.a.re) && isfinite(rec.a.im) &&       \
-                  isfinite(rec.b.re) && isfinite(rec.b.im);                                             \
-        rec.x = fw_select(ok, x, fw_cx(NAN, NAN));                                                      \
+        if (!(first && n_regions > 0 && fw_node_unread(rows, n_regions, z))) {                          \
+            bool paired = core == FW_CORE_TPS_PAIRS_INVERSE;                                            \
+            fw_c x = fw_newton(fw_pre(rows, z), rows, n, paired, iters, rows[4 * FW_ROW_L3 + 2]), dz, dzb; \
+            fw_tps(x, rows, n, paired, &dz, &dzb);                                                      \
+            float inv = 1.0f / (fw_abs2(dz) - fw_abs2(dzb));                                            \
+            rec.a = fw_scale(fw_conj(dz), inv);                                                         \
+            rec.b = fw_scale(dzb, -inv);                                                                \
+            bool ok = isfinite(x.re) && isfinite(x.im) && isfinite(rec.a.re) && isfinite(rec.a.im) &&   \
+                      isfinite(rec.b.re) && isfinite(rec.b.im);                                         \
+            rec.x = fw_select(ok, x, fw_cx(NAN, NAN));                                                  \
+        }                                                                                               \
         before = false;                                                                                 \
     } else if (before) {                                                                                \
         z = fw_stage_kind(rows, z, core, n, n_regions, iters);                                          \
-    }
+    }                                                                                                   \
+    first = false;
     FW_FOR_EACH_STAGE(block, FW_APPLY_NODE)
 #undef FW_APPLY_NODE
     return rec;

@@ -153,6 +153,29 @@ def test_gl_coarse_pass_writes_the_reference_records(make_gl_warper, specialize,
     _assert_records_close(_gl_records(warper), coarse_pass(block, width, height), _read_nodes(block, width, height))
 
 
+@pytest.mark.parametrize("height, width", [(70, 133), (129, 200)])
+def test_opencl_coarse_pass_writes_the_reference_records_and_skips_unread_nodes(height, width, coarse_always):
+    """The OpenCL warp's coarse pass holds coarse.coarse_pass's records at
+    every node that a pixel the regions leave reads, and skips the solve of
+    nodes a region holds deeper than their reach (NaN records, as GL's)."""
+    use_backend("opencl")
+    from fpiwarp.backends import get_backend
+
+    local = _local(height, width)
+    fpiwarp.warp_image(np.zeros((height, width, 1), np.float32), local, backend="opencl")
+    be = get_backend("opencl")
+    job = next(j for j in reversed(list(be._jobs._items.values())) if j._coarse is not None)
+    ny, nx = coarse_shape(width, height)
+    raw = np.empty(ny * nx * 6, np.float32)
+    be._cl.enqueue_copy(be.queue, raw, job._records)
+    r = raw.reshape(ny, nx, 3, 2)
+    got = r[..., 0] + 1j * r[..., 1]
+    block = local.inverse.params()
+    read = _read_nodes(block, width, height)
+    _assert_records_close(got, coarse_pass(block, width, height), read)
+    assert np.isnan(got[~read][..., 0]).mean() > 0.5  # most unread nodes were not solved
+
+
 def test_gl_preview_nodes_start_at_its_viewport_corner(gl_backend):
     """The preview's pass (Renderer, method "pixel") at a viewport away from
     the framebuffer's corner, its view one output pixel per window pixel
