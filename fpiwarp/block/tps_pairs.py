@@ -61,12 +61,13 @@ def pair_logs(e, s, m, dtype):
     return ls, lm, np.where(e < 0, -mag, mag).astype(dtype)
 
 
-#: Points times pairs evaluated in one pass: the pairs lie along a last axis,
-#: so one pass of numpy calls serves every pair (a Python loop over the pairs
-#: made some forty calls per pair, which dominate for the few hundred points
-#: a Newton of fpiwarp.block.coarse_choice evaluates), in chunks of points
-#: that bound the memory.
-CHUNK_ELEMENTS = 1 << 18
+#: Points times pairs evaluated in one pass (at most; at least one pair):
+#: the pairs lie along a last axis, so that for the few hundred points a
+#: Newton of fpiwarp.block.coarse_choice evaluates one pass of numpy calls
+#: serves every pair (a loop over the pairs made some forty calls per pair,
+#: which dominated), while large point sets go a pair or a few at a time
+#: with arrays that stay in the caches.
+CHUNK_ELEMENTS = 1 << 13
 
 
 def _weak(values, other):
@@ -78,7 +79,13 @@ def _weak(values, other):
 
 def _sequential_sum(terms, start):
     """start + terms[..., 0] + terms[..., 1] + ..., added in that order (as
-    the loop over the pairs added them): numpy's accumulate is sequential."""
+    the loop over the pairs added them): numpy's accumulate is sequential
+    (one term each: the two additions themselves)."""
+    if terms[0].shape[-1] == 1:
+        total = start
+        for t in terms:
+            total = total + t[..., 0]
+        return total
     dtype = np.result_type(start, *terms)
     stacked = np.empty(terms[0].shape[:-1] + (1 + len(terms) * terms[0].shape[-1],), dtype)
     stacked[..., 0] = start
@@ -87,8 +94,9 @@ def _sequential_sum(terms, start):
     return np.add.accumulate(stacked, axis=-1)[..., -1]
 
 
-def _pairs_chunk(p, c, w, d, b2, dtype):
-    """tps_pairs_core at the points p (m, 1) for the pairs (c, w, d, b2), each (k,)."""
+def _pairs_group(p, c, w, d, b2, dtype, sums):
+    """``sums`` (val, dz, dzb at the points p (m, 1); None: zeros) plus the
+    terms of the pairs (c, w, d, b2), each (k,), added in their order."""
     q = p - _weak(c, p)
     q2 = q - _weak(d, q)
     a = (q.real**2 + q.imag**2).astype(dtype)
@@ -107,8 +115,9 @@ def _pairs_chunk(p, c, w, d, b2, dtype):
                           (g1 * np.conj(q), 0.5 * big_l * np.conj(qn) - gn * np.conj(d)),
                           (g1 * q, 0.5 * big_l * qn - gn * _weak(d, gn))):
         terms.append((_weak(w, plain) * plain, _weak(b2, paired) * paired))
-    zero = np.zeros(p.shape[:-1], p.dtype)
-    return tuple(_sequential_sum(t, zero) for t in terms)
+    if sums is None:
+        sums = (np.zeros(p.shape[:-1], p.dtype),) * 3
+    return tuple(_sequential_sum(t, start) for t, start in zip(terms, sums))
 
 
 def tps_pairs_core(p, rows, n, dtype, centers_row):
@@ -125,6 +134,9 @@ def tps_pairs_core(p, rows, n, dtype, centers_row):
         zero = np.zeros_like(p)
         return zero, zero.copy(), zero.copy()
     flat = p.reshape(-1, 1)
-    step = max(1, CHUNK_ELEMENTS // len(c))
-    chunks = [_pairs_chunk(flat[i:i + step], c, w, d, b2, dtype) for i in range(0, max(len(flat), 1), step)]
-    return tuple(np.concatenate([ch[k] for ch in chunks]).reshape(p.shape) for k in range(3))
+    group = max(1, min(len(c), CHUNK_ELEMENTS // max(len(flat), 1)))
+    sums = None
+    for g in range(0, len(c), group):
+        part = slice(g, g + group)
+        sums = _pairs_group(flat, c[part], w[part], d[part], b2[part], dtype, sums)
+    return tuple(v.reshape(p.shape) for v in sums)

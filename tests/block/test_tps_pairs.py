@@ -76,15 +76,14 @@ def _pairs_one_by_one(p, rows, n, dtype, first):
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
-@pytest.mark.parametrize("chunk", [1, 7, 1 << 18])
-def test_all_pairs_in_one_pass_add_as_the_loop_over_them(rng, monkeypatch, dtype, chunk):
-    """The pairs evaluated along an axis, in chunks of points of any size,
+@pytest.mark.parametrize("group", [1, 5, 64])
+def test_pairs_in_groups_along_an_axis_add_as_the_loop_over_them(rng, monkeypatch, dtype, group):
+    """The pairs evaluated a group at a time along an axis (one, some, all)
     sum their terms in the pairs' order: the loop's values (the logarithms
-    of a longer array may round differently in the last bit, so float32
-    values are compared to a few ulps of their terms)."""
+    of a longer array may round differently in the last bit, so values are
+    compared to a few ulps of their terms)."""
     from fpiwarp.block import tps_pairs  # noqa: PLC0415
 
-    monkeypatch.setattr(tps_pairs, "CHUNK_ELEMENTS", chunk)
     stage = kernel_cases.tps_pairs_stage()
     rows = B.pack([stage], dtype)
     first, n = B.ROW_CENTERS, 2 * len(stage.centers)
@@ -92,6 +91,8 @@ def test_all_pairs_in_one_pass_add_as_the_loop_over_them(rng, monkeypatch, dtype
     pts = kernel_cases.frame_points(rng, 300)
     both = np.concatenate([stage.centers, stage.centers + stage.offsets])  # centers hit exactly
     p = np.concatenate([pts[:, 0] + 1j * pts[:, 1], both]).astype(cdt).reshape(-1, 2)
+    monkeypatch.setattr(tps_pairs, "CHUNK_ELEMENTS", group * p.size)
+    assert len(stage.centers) > 5
     with np.errstate(all="ignore"):
         got = tps_pairs.tps_pairs_core(p, rows, n, dtype, first)
         want = _pairs_one_by_one(p, rows, n, dtype, first)
