@@ -350,11 +350,17 @@ FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters,
 }
 
 /* region r of a stage: the deepest region containing z wins */
-FW_FN void fw_region(fw_rows_t rows, int r, fw_c z, float *best, fw_c *outside)
+/* region r's depth at z: Re((z - origin) conj(normal)), > 0 inside */
+FW_FN float fw_region_depth(fw_rows_t rows, int r, fw_c z)
 {
     fw_c o = fw_at(rows, FW_ROW_REGIONS + 2 * r, 0), nrm = fw_at(rows, FW_ROW_REGIONS + 2 * r, 2);
+    return fw_mul(fw_sub(z, o), fw_conj(nrm)).re;
+}
+
+FW_FN void fw_region(fw_rows_t rows, int r, fw_c z, float *best, fw_c *outside)
+{
     fw_c a = fw_at(rows, FW_ROW_REGIONS + 2 * r + 1, 0), b = fw_at(rows, FW_ROW_REGIONS + 2 * r + 1, 2);
-    float depth = fw_mul(fw_sub(z, o), fw_conj(nrm)).re;
+    float depth = fw_region_depth(rows, r, z);
     bool win = depth > *best;
     *best = win ? depth : *best;
     *outside = fw_select(win, fw_add(fw_mul(a, z), b), *outside);
@@ -491,10 +497,6 @@ FW_FN fw_c fw_map(fw_block_t block, fw_c z)
 }
 
 /* ---- a warp's coarse pass (fpiwarp/block/coarse.py) --------------------- */
-/* The record (x, a, b) of the node at output position z: the stages before
- * the block's first Newton core, then that core's solve from the table
- * seed, its regions skipped (coarse.coarse_pass); x NaN where it fails or
- * the inverse Jacobian is not finite. */
 /* Whether a node at z of a block's first stage (whose input is the output
  * position) is read by no pixel that the stage's regions leave: one of its
  * n_regions regions holds it deeper than the farthest pixel that reads it
@@ -505,13 +507,17 @@ FW_FN bool fw_node_unread(fw_rows_t rows, int n_regions, fw_c z)
     bool unread = false;
     for (int r = 0; r < FW_MAX_REGIONS; ++r) {
         fw_c o = fw_at(rows, FW_ROW_REGIONS + 2 * r, 0), nrm = fw_at(rows, FW_ROW_REGIONS + 2 * r, 2);
-        float depth = fw_mul(fw_sub(z, o), fw_conj(nrm)).re;
+        float depth = fw_region_depth(rows, r, z);
         float margin = (float)FW_COARSE_STEP * 1.41421356f + 1e-4f * (sqrt(fw_abs2(z)) + sqrt(fw_abs2(o)) + 1.0f);
         unread = unread || (r < n_regions && depth > margin * sqrt(fw_abs2(nrm)));
     }
     return unread;
 }
 
+/* The record (x, a, b) of the node at output position z: the stages before
+ * the block's first Newton core, then that core's solve from the table
+ * seed, its regions skipped (coarse.coarse_pass); x NaN where it fails or
+ * the inverse Jacobian is not finite. */
 FW_FN fw_seed_t fw_coarse_node(fw_block_t block, fw_c z)
 {
     fw_seed_t rec = {{NAN, NAN}, {NAN, NAN}, {NAN, NAN}};
