@@ -54,12 +54,17 @@ def test_newton_batches_take_the_coarse_pass(backend, rng, monkeypatch, coarse_a
         assert (per_pixel != expected).any()
 
 
-@pytest.mark.parametrize("transfer", ["zero_copy", "serial", "pipelined"])
+@pytest.mark.parametrize("transfer", ["zero_copy", "zero_copy, copied", "serial", "pipelined"])
 def test_opencl_transfers_and_bounded_chunks_equal_the_loop(opencl_backend, transfer, rng, monkeypatch):
     """Chunks of one image and launches of two blocks (tiny bounds forced)
-    still give the loop's result, in every way of transferring."""
+    still give the loop's result, in every way of transferring (zero copy:
+    the sources read in place, or copied chunk by chunk as antialiased
+    batches' are)."""
     from fpiwarp.backends.opencl import batch as opencl_batch
 
+    if transfer == "zero_copy, copied":
+        transfer = "zero_copy"
+        monkeypatch.setattr(opencl_batch, "reads_in_place", lambda stack, antialias: False)
     stack = rng.integers(0, 256, size=(5, 13, 17, 3), dtype=np.uint8)
     maps = [make_map(kind, k, 17, 13) for k, kind in enumerate(["fpi", "tps", "fpi", "shift", "tps"])]
     maps[2] = local_map(0, 17, 13)  # a Newton map: its coarse pass per chunk and launch
@@ -71,6 +76,24 @@ def test_opencl_transfers_and_bounded_chunks_equal_the_loop(opencl_backend, tran
     got = backend.warp_batch(stack, maps, (11, 19), order=1, mode="edge", cval=np.zeros(3), transfer=transfer)
     assert calls
     np.testing.assert_array_equal(got, loop(stack, maps, "opencl", {"output_shape": (11, 19), "mode": "edge"}))
+
+
+def test_opencl_batches_read_in_place_only_what_the_kernel_reads_within(opencl_backend, rng):
+    """A zero-copy batch reads the caller's stack in place where the kernel
+    stays inside each image (C-contiguous, images of 4 bytes or more, not
+    antialiased); stacks of 1 x 1 RGB images, read by 32-bit words, are
+    copied with slack. Both equal the loop."""
+    from fpiwarp.backends.opencl import batch as opencl_batch
+
+    assert opencl_batch.reads_in_place(np.zeros((3, 2, 2, 1), np.uint8), False)
+    assert not opencl_batch.reads_in_place(np.zeros((3, 2, 2, 1), np.uint8), True)
+    assert not opencl_batch.reads_in_place(np.zeros((3, 1, 1, 3), np.uint8), False)
+    assert not opencl_batch.reads_in_place(np.zeros((3, 4, 6, 3), np.uint8)[:, :, ::2], False)
+    for shape in [(3, 1, 1, 3), (4, 1, 2, 1), (2, 7, 5, 4)]:
+        stack = rng.integers(0, 256, size=shape, dtype=np.uint8)
+        maps = [make_map(kind, k, 9, 9) for k, kind in zip(range(shape[0]), ["fpi", "shift", "fpi", "tps"])]
+        np.testing.assert_array_equal(fpiwarp.warp_batch(stack, maps, backend="opencl"),
+                                      loop(stack, maps, "opencl", {}))
 
 
 def test_opencl_groups_maps_by_kind():
