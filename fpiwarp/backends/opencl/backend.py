@@ -69,8 +69,9 @@ NARROW_LOCAL_X = (64, 256)
 GROUP_STEP = 64
 #: On CPUs warp_image samples 8 pixels per work-item in 8-lane vector types
 #: (AVX registers): PoCL does not vectorize the sampling across work-items.
-#: A device whose native float vector is 16 wide may run 16, opt-in
-#: (:func:`.tuning.lanes_for`). map_points reads 8 points per work-item.
+#: A device whose native float vector is 16 wide runs 16 where the tuner
+#: measured them faster (:func:`.tuning.lanes_for`). map_points reads 8
+#: points per work-item.
 VECTOR_LANES_CPU = 8
 def _import_cl():
     import pyopencl as cl  # noqa: PLC0415 - optional dependency, imported lazily

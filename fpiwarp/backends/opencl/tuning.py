@@ -33,10 +33,16 @@ float32 1.04x faster, 4K uint8 0.87x, one run at load 3), and with the measured
 16 x 16 tiles (load 2) 4K float32 took the same wall time (less CPU
 time), 4K uint8 1.18x -> 1.27x cv2.remap, 256² 2.27x -> 1.92x, while the
 1024² uint8 tuning warp ran 1.49x faster at 16 lanes: the tuning warp
-does not predict the large calls, so 16 lanes stay opt-in.
-``FPIWARP_OPENCL_LANES=16`` sets them, and ``tune(wide=True)`` measures
-the best tile at the device's native width when that is 16 and keeps the
-faster (:func:`lanes_for`).
+did not predict the large calls, so 16 lanes stayed opt-in. Since the
+interior path reads a row's two taps in one load (FW_PAIR in
+fpiwarp_map.h), whole prepared calls at 16 lanes took 0.95-1.0x the time
+at 8 on a pthread-skylake-avx512 device (Zen 4, 2 cores, quiet; best of 9
+interleaved rounds in one process, 32 x 8 tiles): 4K RGB uint8 27.3
+against 28.3 ms, 4K float32 51.7 against 52.4 ms, 1024² 2.79 against
+2.94 ms, 512² 0.714 against 0.747 ms, 256² 0.193 against 0.198 ms. So
+:func:`tune` now measures the best tile at the device's native width
+too where that is 16 and keeps the faster (:func:`lanes_for`);
+``FPIWARP_OPENCL_LANES`` fixes the width instead.
 
 Every tile and width gives the same output bit for bit (each pixel's code does not
 depend on the tile; tests/backends/opencl/test_opencl_tiles.py), so the
@@ -129,11 +135,11 @@ def tuned(backend):
     return _fixed() is not None or _path(backend).exists()
 
 
-def tune(backend, candidates=CANDIDATES, wide=False):
+def tune(backend, candidates=CANDIDATES, wide=True):
     """Measure ``candidates`` on ``backend`` and keep the fastest (in memory
     and on disk); returns {"tile": (x, y), "lanes": n, "seconds": {"XxY": s}}.
     ``wide``: the best tile at 16 lanes too, where the device's vectors are
-    16 wide ("XxYx16"). Does nothing but report the tile on devices that do
+    16 wide ("XxYx16"); False measures 8 lanes only. Does nothing but report the tile on devices that do
     not tile."""
     import numpy as np  # noqa: PLC0415
 
@@ -141,6 +147,8 @@ def tune(backend, candidates=CANDIDATES, wide=False):
 
     if backend.lanes == 1:
         return {"tile": None, "seconds": {}}
+    if os.environ.get(ENV_LANES, "").strip():  # the width is fixed: only the tiles are measured
+        wide = False
     h, w, c = TUNING_SHAPE
     image = np.random.default_rng(0).integers(0, 256, size=(h, w, c), dtype=np.uint8)
     f = FPI([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]],
@@ -183,6 +191,8 @@ def tune(backend, candidates=CANDIDATES, wide=False):
         return {"tile": tile_for(backend), "seconds": {}}
     best, lanes = min(times, key=times.get)
     backend._tile, backend.lanes = best, lanes
+    if os.environ.get(ENV_LANES, "").strip():
+        backend.lanes = lanes_for(backend)
     backend._jobs.clear()  # jobs prepared with the old tile
     record = {"tile": list(best), "lanes": lanes,
               "seconds": {f"{x}x{y}" + ("" if n == DEFAULT_LANES else f"x{n}"): s for ((x, y), n), s in times.items()},

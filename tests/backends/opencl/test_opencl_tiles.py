@@ -283,9 +283,9 @@ def test_the_tile_is_measured_once_per_device_and_kept(opencl_backend, monkeypat
     assert tuning.lanes_for(be) == tuning.DEFAULT_LANES
     monkeypatch.setattr(tuning, "TUNING_SHAPE", (96, 128, 3))
     monkeypatch.delenv(tuning.ENV_LANES, raising=False)
-    plain = tuning.tune(be, candidates=((64, 8), (16, 16)))
+    plain = tuning.tune(be, candidates=((64, 8), (16, 16)), wide=False)
     assert set(plain["seconds"]) == {"64x8", "16x16"} and plain["lanes"] == tuning.DEFAULT_LANES
-    result = tuning.tune(be, candidates=((64, 8), (16, 16), (4096, 4096)), wide=True)  # the last does not fit
+    result = tuning.tune(be, candidates=((64, 8), (16, 16), (4096, 4096)))  # the last does not fit
     # the tiles at 8 lanes, then the fastest of them at 16 where the device's vectors are 16 wide
     wide = set(result["seconds"]) - {"64x8", "16x16"}
     assert result["tile"] in ((64, 8), (16, 16)) and {"64x8", "16x16"} <= set(result["seconds"])
@@ -299,6 +299,9 @@ def test_the_tile_is_measured_once_per_device_and_kept(opencl_backend, monkeypat
     monkeypatch.setenv(tuning.ENV_LANES, "12")
     with pytest.raises(fpiwarp.ArgumentError, match="FPIWARP_OPENCL_LANES must be one of"):
         tuning.lanes_for(be)
+    monkeypatch.setenv(tuning.ENV_LANES, "8")  # a fixed width: tune measures tiles only, and keeps it
+    fixed = tuning.tune(be, candidates=((64, 8), (16, 16)))
+    assert set(fixed["seconds"]) == {"64x8", "16x16"} and be.lanes == 8
     monkeypatch.delenv(tuning.ENV_LANES)
     monkeypatch.setattr(be, "_tile", None)
     monkeypatch.setenv(tuning.ENV_TILE, "32,16")
