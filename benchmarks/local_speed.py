@@ -159,7 +159,7 @@ def run_batch(n, height, width, rounds):
     stack = np.stack([test_image(height, width, "uint8", rng) for _ in range(n)])
     maps = [local_deformation(height, width + 2 * k) for k in range(n)]
     calls = {}
-    for name, module, one in (("opencl", prepared, (cl_batch, {"ZERO_COPY_CHUNK_BYTES_PER_UNIT": 1})),
+    for name, module, one in (("opencl", prepared, (cl_batch, {"CHUNK_BYTES": 1, "ZERO_COPY_CHUNK_BYTES_PER_UNIT": 1})),
                               ("gl", gl_coarse, (gl_batch, {"SOFTWARE_CHUNK_BYTES": 1, "CHUNK_BYTES": 1}))):
         def batch(name=name):
             return fpiwarp.warp_batch(stack, maps, backend=name)
@@ -189,10 +189,8 @@ def _images_per_chunk(stack):
     from fpiwarp.backends.opencl import batch as cl_batch
 
     be = get_backend("opencl")
-    limit = min(cl_batch.CHUNK_BYTES if be.zero_copy else cl_batch.PIPELINE_CHUNK_BYTES, be.device.max_mem_alloc_size)
-    if be.zero_copy:
-        limit = min(limit, cl_batch.ZERO_COPY_CHUNK_BYTES_PER_UNIT * max(1, be.device.max_compute_units))
-    per_cl = len(range(*cl_batch.chunk_ranges(len(stack), 2 * stack[0].nbytes, limit)[0]))
+    chunks, _ = cl_batch.chunk_plan(be, stack, stack[0].nbytes, cl_batch.default_transfer(be))
+    per_cl = len(range(*chunks[0]))
     per_gl = gl_batch.images_per_draw(get_backend("gl").warper, stack.shape[1:], stack.shape[1:3], 1, True)
     return {"opencl": min(per_cl, len(stack)), "gl": min(per_gl, len(stack))}
 

@@ -256,11 +256,7 @@ def warp_batch(backend, stack, transforms, output_shape, *, order, mode, cval, a
         raise ValueError(f"transfer must be one of {TRANSFERS}, got {transfer!r}")
     job = BatchLaunch(backend, stack.shape, stack.dtype, transforms, output_shape, order=order, mode=mode, cval=cval,
                       antialias=antialias)
-    limit = min(CHUNK_BYTES if transfer == "zero_copy" else PIPELINE_CHUNK_BYTES, backend.device.max_mem_alloc_size)
-    in_place = transfer == "zero_copy" and reads_in_place(stack, antialias)
-    if transfer == "zero_copy" and not in_place:
-        limit = min(limit, ZERO_COPY_CHUNK_BYTES_PER_UNIT * max(1, backend.device.max_compute_units))
-    chunks = chunk_ranges(n, stack[0].nbytes + out[0].nbytes, limit)
+    chunks, in_place = chunk_plan(backend, stack, out[0].nbytes, transfer, antialias)
     if in_place:
         _run_in_place(cl, backend, stack, out, chunks, job.enqueue)
     elif transfer == "zero_copy":
@@ -283,6 +279,17 @@ def warp_arrays(backend, src, dst, transforms, *, order, mode, cval, antialias=F
     return dst
 
 
+def chunk_plan(backend, stack, out_bytes, transfer, antialias=False):
+    """How :func:`warp_batch` goes through ``stack`` (outputs of ``out_bytes``
+    each) with ``transfer``: ([start, stop) ranges of its chunks, whether the
+    kernels read the stack in place)."""
+    limit = min(CHUNK_BYTES if transfer == "zero_copy" else PIPELINE_CHUNK_BYTES, backend.device.max_mem_alloc_size)
+    in_place = transfer == "zero_copy" and reads_in_place(stack, antialias)
+    if transfer == "zero_copy" and not in_place:
+        limit = min(limit, ZERO_COPY_CHUNK_BYTES_PER_UNIT * max(1, backend.device.max_compute_units))
+    return chunk_ranges(len(stack), stack[0].nbytes + out_bytes, limit), in_place
+
+
 def reads_in_place(stack, antialias):
     """Whether a zero-copy batch reads ``stack`` in place (:func:`_run_in_place`):
     a C-contiguous stack of images of IMAGE_SLACK bytes or more (the
@@ -303,15 +310,20 @@ def _run_in_place(cl, backend, stack, out, chunks, launch):
     against 74 ms, 256 x 128² 25.9 against 27.5 ms. Reading in place image
     by image was slower than the copies (99-122 ms at 64 x 512²): the
     waits between launches, not the cold source, cost the time."""
-    mf, queue = cl.mem_flags, backend.queue
     for a, b in chunks:
-        src = cl.Buffer(backend.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=stack[a:b])
-        dst = cl.Buffer(backend.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
-        launch(queue, src, dst, a, b, None)
-        mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
-        event.wait()
-        del mapped, src, dst
-    queue.finish()
+        src = cl.Buffer(backend.context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=stack[a:b])
+        _launch_into(cl, backend, src, out, a, b, launch)
+    backend.queue.finish()
+
+
+def _launch_into(cl, backend, src, out, a, b, launch):
+    """The launches of images [a, b) from ``src`` writing ``out[a:b]`` in
+    place (USE_HOST_PTR), made visible by a map; waits for them."""
+    dst = cl.Buffer(backend.context, cl.mem_flags.WRITE_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=out[a:b])
+    launch(backend.queue, src, dst, a, b, None)
+    mapped, event = cl.enqueue_map_buffer(backend.queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
+    event.wait()
+    del mapped
 
 
 def _run_zero_copy(cl, backend, stack, out, chunks, launch):
@@ -322,19 +334,17 @@ def _run_zero_copy(cl, backend, stack, out, chunks, launch):
     leaves a chunk in the caches, where the kernel's gathers find it. One
     copy of the whole stack (50 MB for 64 images of 512² RGB) streamed it
     through the caches before the kernel read it again from memory: 0.53-0.68×
-    the loop of warp_image, whose per-image copy stays in the cache. Reading
-    the caller's stack in place (USE_HOST_PTR, no copy) was no better than
-    the loop either (0.7-1.2×, a cold source)."""
+    the loop of warp_image, whose per-image copy then stayed in the cache.
+    Reading the caller's stack in place was then no better than the loop
+    (0.7-1.2×, a loaded machine); since the loop reads its sources in place
+    too, the batches that can do so read in place (:func:`_run_in_place`),
+    and this path is left to those that cannot."""
     mf, queue = cl.mem_flags, backend.queue
     per = chunks[0][1] - chunks[0][0]
     src = kept_buffer(backend, "in0", per * stack[0].nbytes + backend.image_slack, mf.READ_ONLY)
     for a, b in chunks:
         cl.enqueue_copy(queue, src, stack[a:b])
-        dst = cl.Buffer(backend.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out[a:b])
-        launch(queue, src, dst, a, b, None)
-        mapped, event = cl.enqueue_map_buffer(queue, dst, cl.map_flags.READ, 0, out[a:b].shape, out.dtype)
-        event.wait()
-        del mapped
+        _launch_into(cl, backend, src, out, a, b, launch)
     queue.finish()
 
 
