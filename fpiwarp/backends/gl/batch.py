@@ -44,7 +44,7 @@ import numpy as np
 from ...block import describe
 from ...block.coarse import coarse_shape, newton_stage
 from ...block.many import BlockStack
-from . import coarse
+from . import band, coarse
 from .context import bound_framebuffer, software_rasterizer
 from .programs import MAX_ROWS, set_uniform
 from .tiling import SOURCE_TEXTURE_DTYPES, tiles
@@ -171,6 +171,13 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
     try:
         groups = kind_groups(stack_of_blocks, n, warper.specialize, by_newton=True)
         for stages, short, newton, idx, own, seeded in by_choice(groups, stack_of_blocks, (oh, ow)):
+            if seeded and splits(stack_of_blocks, idx[0] if own else 0):
+                # the single warp's split draw (band.py), which the instanced draw lacks: image by image
+                for i in idx:
+                    j = i if own else 0
+                    out[i] = warper.warp_block(stack[i], stack_of_blocks.array[j, :stack_of_blocks.rows[j]], (oh, ow),
+                                               order=order, mode=mode, cval=cval)
+                continue
             warper.short_map, warper.newton_map = short, newton  # as set_map sets them for one of the maps
             key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=seeded)
             seeded = coarse.FLAG in key.flags
@@ -187,6 +194,16 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
         warper.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
         caller.use()
     return out
+
+
+def splits(stack, i):
+    """Whether the single warp of block ``i`` of ``stack`` (a
+    :class:`~fpiwarp.block.many.BlockStack`), seeded, draws its band apart
+    (:func:`.band.applies`). A batch draws those maps image by image: the
+    instanced draw has no region pass, and on llvmpipe it ran every pixel
+    through the band's Newton code, 1.4-2x the loop's time for local
+    deformations (16 x 512², 8 x 1080p; benchmarks/local_speed.py --batch)."""
+    return band.applies(describe(stack.array[i, :stack.rows[i]]))
 
 
 def set_sampling_values(prog, stack, output_shape, cval, own):

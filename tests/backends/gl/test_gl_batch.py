@@ -152,3 +152,27 @@ def test_the_callers_framebuffer_stays_bound(make_gl_warper, rng):
     finally:
         w.ctx.detect_framebuffer(0).use()
         fbo.release()
+
+
+def test_maps_whose_single_warp_splits_its_band_are_drawn_image_by_image(make_gl_warper, rng, monkeypatch):
+    """A seeded map whose first stage has a Newton core and regions draws its
+    band apart when warped alone (fpiwarp/backends/gl/band.py); the instanced
+    draw cannot, so a batch warps those maps image by image (the loop's
+    result) and the others in instanced draws."""
+    from support.batch_cases import local_map
+
+    from fpiwarp.backends.gl import batch
+    from fpiwarp.block.many import BlockStack
+
+    stack = rng.integers(0, 256, size=(4, 60, 90, 3), dtype=np.uint8)
+    maps = [local_map(0, 90, 60), make_map("fpi", 1, 90, 60), local_map(2, 90, 60), make_map("fpi", 3, 90, 60)]
+    blocks = BlockStack.of([t.inverse for t in maps])
+    assert [batch.splits(blocks, i) for i in range(4)] == [True, False, True, False]
+    monkeypatch.setattr(batch.coarse, "picks", lambda *a, **k: True)  # the pass taken: the band split applies
+    draws = []
+    real = batch.draw_group
+    monkeypatch.setattr(batch, "draw_group", lambda w, p, s, b, idx, *a: draws.append(idx.tolist()) or
+                        real(w, p, s, b, idx, *a))
+    got, expected = run(make_gl_warper(), stack, maps, (60, 90), order=1, mode="constant", cval=np.zeros(3))
+    np.testing.assert_array_equal(got, expected)
+    assert sorted(draws) == [[1, 3]]
