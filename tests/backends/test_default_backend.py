@@ -22,18 +22,41 @@ F = fpiwarp.FPI([[0, 0], [40, 0], [40, 30], [0, 30]], [[2, 1], [38, -2], [43, 31
 
 @pytest.fixture
 def fresh(monkeypatch, tmp_path):
-    """The default's state forgotten, a cache folder of its own, the switches unset."""
+    """The default's state forgotten, a cache folder of its own, the switches
+    unset; afterwards the opencl backend's launch shape as it was (the
+    calibration tunes it: later tests then build their programs as before)."""
     monkeypatch.setenv(default.ENV_CACHE_DIR, str(tmp_path))
     monkeypatch.delenv(default.ENV_DEFAULT, raising=False)
     monkeypatch.delenv(default.ENV_CALIBRATE, raising=False)
     default.set_default_backend(None)
     default.reset(disk=False)
     saved = dict(fpiwarp.backends._failed)
+    shape = launch_shape(fpiwarp.backends._instances.get("opencl"))
     yield tmp_path
     fpiwarp.backends._failed.clear()
     fpiwarp.backends._failed.update(saved)
     default.set_default_backend(None)
     default.reset(disk=False)
+    restore_launch_shape(fpiwarp.backends._instances.get("opencl"), shape)
+
+
+def launch_shape(be):
+    """(tile, lanes) of an opencl backend object, None if there is none."""
+    return None if be is None else (be.__dict__.get("_tile"), be.lanes)
+
+
+def restore_launch_shape(be, shape):
+    """The tile and width ``be`` had (``shape``), or a new backend's
+    (untuned: no tile file in the session's cache) where it was made since."""
+    if be is None or be.lanes == 1:
+        return
+    if shape is None:
+        from fpiwarp.backends.opencl import tuning
+
+        shape = (None, int(os.environ.get(tuning.ENV_LANES) or tuning.DEFAULT_LANES))
+    if launch_shape(be) != shape:
+        be._tile, be.lanes = shape
+        be._jobs.clear()  # jobs prepared with the tuned shape
 
 
 def image(dtype=np.uint8, shape=(31, 41, 3)):
