@@ -20,6 +20,15 @@ def run(warper, stack, maps, shape, **options):
     return got, expected
 
 
+def recorded_draws(batch, monkeypatch):
+    """A list that each instanced draw of ``batch`` (the module) appends its images' indices to."""
+    draws = []
+    real = batch.draw_group
+    monkeypatch.setattr(batch, "draw_group", lambda w, p, s, b, idx, *a: draws.append(idx.tolist()) or
+                        real(w, p, s, b, idx, *a))
+    return draws
+
+
 KINDS = ["fpi", "tps", "fpi", "shift", "tps", "compound"]
 
 
@@ -28,10 +37,7 @@ def test_one_draw_per_kind_of_map(make_gl_warper, rng, monkeypatch):
 
     stack = rng.integers(0, 256, size=(6, 11, 13, 3), dtype=np.uint8)
     maps = [make_map(kind, k, 13, 11) for k, kind in enumerate(KINDS)]
-    draws = []
-    real = batch.draw_group
-    monkeypatch.setattr(batch, "draw_group", lambda w, p, s, b, idx, *a: draws.append(idx.tolist()) or
-                        real(w, p, s, b, idx, *a))
+    draws = recorded_draws(batch, monkeypatch)
     got, expected = run(make_gl_warper(), stack, maps, (9, 15), order=1, mode="edge", cval=np.zeros(3))
     np.testing.assert_array_equal(got, expected)
     assert sorted(draws) == [[0, 2, 3], [1, 4], [5]]  # an R-linear map is an FPI's kind of program here
@@ -169,10 +175,7 @@ def test_maps_whose_single_warp_splits_its_band_are_drawn_image_by_image(make_gl
     blocks = BlockStack.of([t.inverse for t in maps])
     assert [batch.splits(blocks, i) for i in range(4)] == [True, False, True, False]
     monkeypatch.setattr(batch.coarse, "picks", lambda *a, **k: True)  # the pass taken: the band split applies
-    draws = []
-    real = batch.draw_group
-    monkeypatch.setattr(batch, "draw_group", lambda w, p, s, b, idx, *a: draws.append(idx.tolist()) or
-                        real(w, p, s, b, idx, *a))
+    draws = recorded_draws(batch, monkeypatch)
     got, expected = run(make_gl_warper(), stack, maps, (60, 90), order=1, mode="constant", cval=np.zeros(3))
     np.testing.assert_array_equal(got, expected)
     assert sorted(draws) == [[1, 3]]
