@@ -139,16 +139,17 @@ def tune(backend, candidates=CANDIDATES, wide=True):
     """Measure ``candidates`` on ``backend`` and keep the fastest (in memory
     and on disk); returns {"tile": (x, y), "lanes": n, "seconds": {"XxY": s}}.
     ``wide``: the best tile at 16 lanes too, where the device's vectors are
-    16 wide ("XxYx16"); False measures 8 lanes only. Does nothing but report the tile on devices that do
-    not tile."""
+    16 wide ("XxYx16"); False measures 8 lanes only. A width fixed by
+    FPIWARP_OPENCL_LANES is the one the tiles are measured at, and kept.
+    Does nothing but report the tile on devices that do not tile."""
     import numpy as np  # noqa: PLC0415
 
     from ...maps.fpi import FPI  # noqa: PLC0415
 
     if backend.lanes == 1:
         return {"tile": None, "seconds": {}}
-    if os.environ.get(ENV_LANES, "").strip():  # the width is fixed: only the tiles are measured
-        wide = False
+    fixed = bool(os.environ.get(ENV_LANES, "").strip())  # the width is fixed: only the tiles are measured
+    base = lanes_for(backend) if fixed else DEFAULT_LANES
     h, w, c = TUNING_SHAPE
     image = np.random.default_rng(0).integers(0, 256, size=(h, w, c), dtype=np.uint8)
     f = FPI([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]],
@@ -180,8 +181,8 @@ def tune(backend, candidates=CANDIDATES, wide=True):
 
     try:
         with backend._lock:
-            times = measure([(tile, DEFAULT_LANES) for tile in candidates])
-            if times and wide and WIDE_LANES in candidate_lanes(backend):
+            times = measure([(tile, base) for tile in candidates])
+            if times and wide and not fixed and WIDE_LANES in candidate_lanes(backend):
                 tile = min(times, key=times.get)[0]
                 times = measure([(tile, DEFAULT_LANES), (tile, WIDE_LANES)]) | {
                     k: v for k, v in times.items() if k[0] != tile}
@@ -191,8 +192,6 @@ def tune(backend, candidates=CANDIDATES, wide=True):
         return {"tile": tile_for(backend), "seconds": {}}
     best, lanes = min(times, key=times.get)
     backend._tile, backend.lanes = best, lanes
-    if os.environ.get(ENV_LANES, "").strip():
-        backend.lanes = lanes_for(backend)
     backend._jobs.clear()  # jobs prepared with the old tile
     record = {"tile": list(best), "lanes": lanes,
               "seconds": {f"{x}x{y}" + ("" if n == DEFAULT_LANES else f"x{n}"): s for ((x, y), n), s in times.items()},
