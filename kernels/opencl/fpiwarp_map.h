@@ -960,17 +960,20 @@ typedef ulong16 fw_lv;
 typedef struct __attribute__((packed)) {
     ulong v;
 } fw_chunk;
-typedef struct __attribute__((packed)) {
-    uint v;
-} fw_word32;
 #define FW_CHUNK_AT(k) ((__global const fw_chunk *)(img + FW_LANE(at, k)) + c)->v
-#define FW_WORD32_AT(k) ((__global const fw_word32 *)(img + FW_LANE(at, k)))->v
 /* words[h]: the pair's 32-bit halves (half 2c and 2c + 1: chunk c's low
  * and high); indexed by constants only, so it lives in registers */
-#if FW_PAIR_CHUNKS == 0
+#if FW_PAIR_CHUNKS == 0 && !FW_WORD_BITS
+#error "a pair of at most 4 bytes is read as the tap's 32-bit word (FW_WORD_BITS)"
+#endif
+#if FW_PAIR_CHUNKS == 0 /* a pair of at most 4 bytes: FW_WORD_BITS is set, the tap's word holds both */
 #define FW_PAIR_LOAD()      \
-    fw_uv words[1];          \
-    words[0] = FW_GATHER(fw_uv, FW_WORD32_AT);
+    fw_uv words[1];         \
+    {                       \
+        const int off = 0;  \
+        FW_TAP_LOAD(at)     \
+        words[0] = word;    \
+    }
 #else
 #define FW_PAIR_LOAD()                                       \
     fw_uv words[2 * FW_PAIR_CHUNKS];                          \
