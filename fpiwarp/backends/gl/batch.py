@@ -170,13 +170,13 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
         caller = warper.targets.dummy
     try:
         groups = kind_groups(stack_of_blocks, n, warper.specialize, by_newton=True)
+        single = stack_of_blocks.blocks()  # each map's block alone (views), for the maps drawn image by image
         for stages, short, newton, idx, own, seeded in by_choice(groups, stack_of_blocks, (oh, ow)):
-            if seeded and splits(stack_of_blocks, idx[0] if own else 0):
+            if seeded and splits(single[idx[0] if own else 0]):
                 # the single warp's split draw (band.py), which the instanced draw lacks: image by image
                 for i in idx:
-                    j = i if own else 0
-                    out[i] = warper.warp_block(stack[i], stack_of_blocks.array[j, :stack_of_blocks.rows[j]], (oh, ow),
-                                               order=order, mode=mode, cval=cval)
+                    out[i] = warper.warp_block(stack[i], single[i if own else 0], (oh, ow), order=order, mode=mode,
+                                               cval=cval)
                 continue
             warper.short_map, warper.newton_map = short, newton  # as set_map sets them for one of the maps
             key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=seeded)
@@ -196,14 +196,14 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
     return out
 
 
-def splits(stack, i):
-    """Whether the single warp of block ``i`` of ``stack`` (a
-    :class:`~fpiwarp.block.many.BlockStack`), seeded, draws its band apart
+def splits(block):
+    """Whether the single warp of ``block`` (one map's, as
+    :meth:`~fpiwarp.block.many.BlockStack.blocks` gives it), seeded, draws its band apart
     (:func:`.band.applies`). A batch draws those maps image by image: the
     instanced draw has no region pass, and on llvmpipe it ran every pixel
     through the band's Newton code, 1.4-2x the loop's time for local
     deformations (16 x 512², 8 x 1080p; benchmarks/local_speed.py --batch)."""
-    return band.applies(describe(stack.array[i, :stack.rows[i]]))
+    return band.applies(describe(block))
 
 
 def set_sampling_values(prog, stack, output_shape, cval, own):

@@ -173,7 +173,7 @@ def test_maps_whose_single_warp_splits_its_band_are_drawn_image_by_image(make_gl
     stack = rng.integers(0, 256, size=(4, 60, 90, 3), dtype=np.uint8)
     maps = [local_map(0, 90, 60), make_map("fpi", 1, 90, 60), local_map(2, 90, 60), make_map("fpi", 3, 90, 60)]
     blocks = BlockStack.of([t.inverse for t in maps])
-    assert [batch.splits(blocks, i) for i in range(4)] == [True, False, True, False]
+    assert [batch.splits(b) for b in blocks.blocks()] == [True, False, True, False]
     monkeypatch.setattr(batch.coarse, "picks", lambda *a, **k: True)  # the pass taken: the band split applies
     draws = recorded_draws(batch, monkeypatch)
     got, expected = run(make_gl_warper(), stack, maps, (60, 90), order=1, mode="constant", cval=np.zeros(3))
