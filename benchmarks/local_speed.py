@@ -159,7 +159,7 @@ def run_batch(n, height, width, rounds):
     stack = np.stack([test_image(height, width, "uint8", rng) for _ in range(n)])
     maps = [local_deformation(height, width + 2 * k) for k in range(n)]
     calls = {}
-    for name, module, one in (("opencl", prepared, (cl_batch, {"CHUNK_BYTES": 1, "ZERO_COPY_CHUNK_BYTES_PER_UNIT": 1})),
+    for name, module, one in (("opencl", prepared, (cl_batch, {"CHUNK_BYTES": 1})),
                               ("gl", gl_coarse, (gl_batch, {"SOFTWARE_CHUNK_BYTES": 1, "CHUNK_BYTES": 1}))):
         def batch(name=name):
             return fpiwarp.warp_batch(stack, maps, backend=name)
