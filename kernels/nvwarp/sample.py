@@ -129,6 +129,29 @@ def nearest_tap(img: wp.array3d(dtype=Any), r: int, q: int, ok: bool, cval: wp.v
 
 
 @wp.func
+def bilinear_cell(s: wp.vec2):
+    """Order 1's cell at s (in range): its top-left tap (x0, y0) and the
+    fractions (tx, ty) of s past it."""
+    sx = clip_coord(s[0])
+    sy = clip_coord(s[1])
+    fx = wp.floor(sx)
+    fy = wp.floor(sy)
+    return int(fx), int(fy), sx - fx, sy - fy
+
+
+@wp.func
+def cell_inside(x0: int, y0: int, w: int, h: int):
+    """Whether order 1's four taps from (x0, y0) all lie inside the w × h image."""
+    return x0 >= 0 and x0 + 1 < w and y0 >= 0 and y0 + 1 < h
+
+
+@wp.func
+def bilinear_mix(v00: float, v01: float, v10: float, v11: float, tx: float, ty: float):
+    """Order 1's value from its four taps (rows first, then between them)."""
+    return (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
+
+
+@wp.func
 def bilinear_taps(
     img: wp.array3d(dtype=Any), r0: int, r1: int, c0: int, c1: int, ok00: bool, ok01: bool, ok10: bool,
     ok11: bool, tx: float, ty: float, cval: wp.vec4, channels: int,
@@ -141,7 +164,7 @@ def bilinear_taps(
             v01 = tap(float(img[r0, c1, c]), cval[c], ok01)
             v10 = tap(float(img[r1, c0, c]), cval[c], ok10)
             v11 = tap(float(img[r1, c1, c]), cval[c], ok11)
-            v[c] = (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
+            v[c] = bilinear_mix(v00, v01, v10, v11, tx, ty)
     return v
 
 
@@ -183,14 +206,9 @@ def sample(
             return nearest_tap(img, src0 + iy, ix, True, cval, channels)
         ok = inside(ix, w, mode) and inside(iy, h, mode)
         return nearest_tap(img, src0 + border_index(iy, h, mode), border_index(ix, w, mode), ok, cval, channels)
-    fx = wp.floor(sx)
-    fy = wp.floor(sy)
-    tx = sx - fx
-    ty = sy - fy
     if order == 1:
-        x0 = int(fx)
-        y0 = int(fy)
-        if x0 >= 0 and x0 + 1 < w and y0 >= 0 and y0 + 1 < h:
+        x0, y0, tx, ty = bilinear_cell(s)
+        if cell_inside(x0, y0, w, h):
             return bilinear_taps(img, src0 + y0, src0 + y0 + 1, x0, x0 + 1, True, True, True, True, tx, ty, cval,
                                  channels)
         in_x0 = inside(x0, w, mode)  # all True but in constant mode
@@ -200,8 +218,10 @@ def sample(
         return bilinear_taps(img, src0 + border_index(y0, h, mode), src0 + border_index(y0 + 1, h, mode),
                              border_index(x0, w, mode), border_index(x0 + 1, w, mode), in_y0 and in_x0,
                              in_y0 and in_x1, in_y1 and in_x0, in_y1 and in_x1, tx, ty, cval, channels)
-    wx = cubic_weights(tx)
-    wy = cubic_weights(ty)
+    fx = wp.floor(sx)
+    fy = wp.floor(sy)
+    wx = cubic_weights(sx - fx)
+    wy = cubic_weights(sy - fy)
     x0 = int(fx) - 1
     y0 = int(fy) - 1
     if x0 >= 0 and x0 + 3 < w and y0 >= 0 and y0 + 3 < h:
@@ -331,12 +351,19 @@ def level_texel(src: wp.array3d(dtype=Any), r0: int, r1: int, c0: int, c1: int, 
 
 
 @wp.func
+def pixel_value(value: float, top: float):
+    """A value as written to an image: integer images (top > 0) round
+    floor(v + 0.5) and clip to [0, top]; float images take it as it is."""
+    if top > 0.0:
+        return wp.clamp(wp.floor(value + 0.5), 0.0, top)
+    return value
+
+
+@wp.func
 def store_pixel(out: wp.array3d(dtype=Any), y: int, x: int, v: wp.vec4, channels: int, top: float):
     """Write the first ``channels`` values of v at (y, x): integer images
     (top > 0) round floor(v + 0.5) and clip to [0, top]."""
     for c in range(4):
         if c < channels:
-            value = v[c]
-            if top > 0.0:
-                value = wp.clamp(wp.floor(value + 0.5), 0.0, top)
-            out[y, x, c] = out.dtype(value)
+            out[y, x, c] = out.dtype(pixel_value(v[c], top))
+
