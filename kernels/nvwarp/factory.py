@@ -32,12 +32,12 @@ kernel takes its row in chunks of :data:`ROW_CHUNK` pixels: the map over
 a chunk into two local arrays first, in a loop that neither reads the
 image nor writes a pixel, which the C++ compiler vectorizes across pixels
 (16 lanes with AVX-512; the one loop of map, sampler and store it did
-not), then each pixel of the chunk sampled and written. Bilinear row
-kernels split the sampler too: each pixel's cell (in the map's loop), the
-taps of the cells inside the image read into a local array (the only
-data-dependent reads; pixels whose cells cross the border or whose
+not), then each pixel of the chunk sampled and written. Nearest and
+bilinear row kernels split the sampler too: each pixel's taps (in the
+map's loop), the taps inside the image read into a local array (the only
+data-dependent reads; pixels whose taps cross the border or whose
 positions are out of range sampled whole by :func:`~.sample.sample`),
-the values mixed and rounded in a vectorized loop, then written.
+bilinear values mixed and rounded in a vectorized loop, then written.
 """
 
 import hashlib
@@ -50,12 +50,13 @@ import warp as wp
 from .sample import (
     bilinear_cell,
     bilinear_mix,
-    cell_inside,
     in_range,
     level_texel,
+    nearest_cell,
     pixel_value,
     sample,
     sample_footprint,
+    span_inside,
     store_pixel,
 )
 from .stage import then_stage, walk
@@ -243,15 +244,16 @@ def _make_image_kernel(spec):
             channels = wp.static(CHANNELS)
         oy = dst0 + y
         x = x_first
-        if wp.static(CHUNK > 0 and ORDER == 1):
-            # Warp's CPU device, bilinear: the row in chunks, each in four
-            # loops, so that only the taps' reads and the pixels' writes are
-            # scalar (data-dependent addresses, the image's strides): the map
-            # and each pixel's cell (vectorized), the four taps of each cell
-            # inside the image read into a local array (a pixel whose cell is
-            # not inside, or whose position is out of range, sampled whole by
-            # the one sampler, with its border rule), each pixel's value
-            # mixed and rounded from its taps (vectorized), the values written
+        if wp.static(CHUNK > 0 and (ORDER == 0 or ORDER == 1)):
+            # Warp's CPU device, nearest and bilinear: the row in chunks, each
+            # in loops such that only the taps' reads and the pixels' writes
+            # are scalar (data-dependent addresses, the image's strides): the
+            # map and each pixel's taps (vectorized); the taps of each pixel
+            # whose taps lie inside the image read into a local array (a
+            # pixel whose taps do not, or whose position is out of range,
+            # sampled whole by the one sampler, with its border rule); for
+            # bilinear, each pixel's value mixed and rounded from its taps
+            # (vectorized); the values written
             fy = float(y)
             w = src.shape[1]
             sx = wp.vector(dtype=float, length=wp.static(CHUNK))
@@ -261,7 +263,7 @@ def _make_image_kernel(spec):
             x0 = wp.vector(dtype=int, length=wp.static(CHUNK))
             y0 = wp.vector(dtype=int, length=wp.static(CHUNK))
             rim = wp.vector(dtype=int, length=wp.static(CHUNK))  # 1: sampled whole (border rule or cval)
-            taps = wp.vector(dtype=T, length=wp.static(16 * CHUNK))  # [(tap·4 + channel)·CHUNK + pixel]
+            taps = wp.vector(dtype=T, length=wp.static(16 * CHUNK))  # bilinear: [(tap·4 + channel)·CHUNK + pixel]
             rim_v = wp.vector(dtype=float, length=wp.static(4 * CHUNK))  # [channel·CHUNK + pixel]
             vals = wp.vector(dtype=T, length=wp.static(4 * CHUNK))
             while x < x_last:
@@ -269,46 +271,56 @@ def _make_image_kernel(spec):
                 i = wp.int32(0)
                 while i < count:
                     si, dzi, dzbi = map_at(blk, wp.vec2(float(x + i), fy))
-                    xi, yi, txi, tyi = bilinear_cell(si)
                     sx[i] = si[0]
                     sy[i] = si[1]
+                    if wp.static(ORDER == 1):
+                        xi, yi, txi, tyi = bilinear_cell(si)
+                        tx[i] = txi
+                        ty[i] = tyi
+                    else:
+                        xi, yi = nearest_cell(si)
                     x0[i] = xi
                     y0[i] = yi
-                    tx[i] = txi
-                    ty[i] = tyi
-                    rim[i] = 1 - int(in_range(si) and cell_inside(xi, yi, w, h))
+                    rim[i] = 1 - int(in_range(si) and span_inside(xi, yi, wp.static(ORDER + 1), w, h))
                     i = i + 1
                 i = wp.int32(0)
                 while i < count:
                     if rim[i] == 0:
-                        r = (src0 + y0[i]) & wp.static(NONNEG)  # an inside cell's taps: not negative
+                        r = (src0 + y0[i]) & wp.static(NONNEG)  # taps inside the image: not negative
                         q = x0[i] & wp.static(NONNEG)
                         for c in range(4):
                             if c < channels:
-                                taps[c * wp.static(CHUNK) + i] = src[r, q, c]
-                                taps[(4 + c) * wp.static(CHUNK) + i] = src[r, q + 1, c]
-                                taps[(8 + c) * wp.static(CHUNK) + i] = src[r + 1, q, c]
-                                taps[(12 + c) * wp.static(CHUNK) + i] = src[r + 1, q + 1, c]
+                                if wp.static(ORDER == 1):
+                                    taps[c * wp.static(CHUNK) + i] = src[r, q, c]
+                                    taps[(4 + c) * wp.static(CHUNK) + i] = src[r, q + 1, c]
+                                    taps[(8 + c) * wp.static(CHUNK) + i] = src[r + 1, q, c]
+                                    taps[(12 + c) * wp.static(CHUNK) + i] = src[r + 1, q + 1, c]
+                                else:  # the pixel as it is (what rounding its float value gives back)
+                                    vals[c * wp.static(CHUNK) + i] = src[r, q, c]
                     else:
                         si = wp.vec2(sx[i], sy[i])
                         vi = cval
                         if in_range(si):
-                            vi = sample(src, src0, h, w, si, 1, mode, cval, channels)
+                            vi = sample(src, src0, h, w, si, wp.static(ORDER), mode, cval, channels)
                         for c in range(4):
                             if c < channels:
-                                rim_v[c * wp.static(CHUNK) + i] = vi[c]
+                                if wp.static(ORDER == 1):
+                                    rim_v[c * wp.static(CHUNK) + i] = vi[c]
+                                else:
+                                    vals[c * wp.static(CHUNK) + i] = dst.dtype(pixel_value(vi[c], wp.static(TOP)))
                     i = i + 1
-                i = wp.int32(0)
-                while i < count:
-                    for c in range(4):
-                        if c < channels:
-                            vm = bilinear_mix(float(taps[c * wp.static(CHUNK) + i]),
-                                              float(taps[(4 + c) * wp.static(CHUNK) + i]),
-                                              float(taps[(8 + c) * wp.static(CHUNK) + i]),
-                                              float(taps[(12 + c) * wp.static(CHUNK) + i]), tx[i], ty[i])
-                            vm = wp.where(rim[i] != 0, rim_v[c * wp.static(CHUNK) + i], vm)
-                            vals[c * wp.static(CHUNK) + i] = dst.dtype(pixel_value(vm, wp.static(TOP)))
-                    i = i + 1
+                if wp.static(ORDER == 1):
+                    i = wp.int32(0)
+                    while i < count:
+                        for c in range(4):
+                            if c < channels:
+                                vm = bilinear_mix(float(taps[c * wp.static(CHUNK) + i]),
+                                                  float(taps[(4 + c) * wp.static(CHUNK) + i]),
+                                                  float(taps[(8 + c) * wp.static(CHUNK) + i]),
+                                                  float(taps[(12 + c) * wp.static(CHUNK) + i]), tx[i], ty[i])
+                                vm = wp.where(rim[i] != 0, rim_v[c * wp.static(CHUNK) + i], vm)
+                                vals[c * wp.static(CHUNK) + i] = dst.dtype(pixel_value(vm, wp.static(TOP)))
+                        i = i + 1
                 i = wp.int32(0)
                 oyp = oy & wp.static(NONNEG)
                 while i < count:
@@ -318,7 +330,7 @@ def _make_image_kernel(spec):
                             dst[oyp, xi, c] = vals[c * wp.static(CHUNK) + i]
                     i = i + 1
                 x = x + count
-        if wp.static(CHUNK > 0 and ORDER != 1):
+        if wp.static(CHUNK > 0 and ORDER != 0 and ORDER != 1):
             # Warp's CPU device: the row in chunks, the map over a chunk into
             # local arrays first (a loop without image reads or stores, which
             # the C++ compiler vectorizes across pixels), then each pixel

@@ -140,9 +140,16 @@ def bilinear_cell(s: wp.vec2):
 
 
 @wp.func
-def cell_inside(x0: int, y0: int, w: int, h: int):
-    """Whether order 1's four taps from (x0, y0) all lie inside the w × h image."""
-    return x0 >= 0 and x0 + 1 < w and y0 >= 0 and y0 + 1 < h
+def nearest_cell(s: wp.vec2):
+    """Order 0's one tap at s (in range): the nearest pixel, floor(s + 0.5)."""
+    return int(wp.floor(clip_coord(s[0]) + 0.5)), int(wp.floor(clip_coord(s[1]) + 0.5))
+
+
+@wp.func
+def span_inside(x0: int, y0: int, n: int, w: int, h: int):
+    """Whether the n × n taps from (x0, y0) (order 0: 1, 1: 2, 3: 4) all lie
+    inside the w × h image, where the taps are read as they are."""
+    return x0 >= 0 and x0 + n <= w and y0 >= 0 and y0 + n <= h
 
 
 @wp.func
@@ -197,18 +204,15 @@ def sample(
     """sampler.sample of the first ``channels`` channels at s (in range) of
     the h × w image at rows [src0, src0 + h), columns [0, w) of ``img``:
     the taps' indices and weights computed once for all channels."""
-    sx = clip_coord(s[0])
-    sy = clip_coord(s[1])
     if order == 0:
-        ix = int(wp.floor(sx + 0.5))
-        iy = int(wp.floor(sy + 0.5))
-        if ix >= 0 and ix < w and iy >= 0 and iy < h:
+        ix, iy = nearest_cell(s)
+        if span_inside(ix, iy, 1, w, h):
             return nearest_tap(img, src0 + iy, ix, True, cval, channels)
         ok = inside(ix, w, mode) and inside(iy, h, mode)
         return nearest_tap(img, src0 + border_index(iy, h, mode), border_index(ix, w, mode), ok, cval, channels)
     if order == 1:
         x0, y0, tx, ty = bilinear_cell(s)
-        if cell_inside(x0, y0, w, h):
+        if span_inside(x0, y0, 2, w, h):
             return bilinear_taps(img, src0 + y0, src0 + y0 + 1, x0, x0 + 1, True, True, True, True, tx, ty, cval,
                                  channels)
         in_x0 = inside(x0, w, mode)  # all True but in constant mode
@@ -218,13 +222,15 @@ def sample(
         return bilinear_taps(img, src0 + border_index(y0, h, mode), src0 + border_index(y0 + 1, h, mode),
                              border_index(x0, w, mode), border_index(x0 + 1, w, mode), in_y0 and in_x0,
                              in_y0 and in_x1, in_y1 and in_x0, in_y1 and in_x1, tx, ty, cval, channels)
+    sx = clip_coord(s[0])
+    sy = clip_coord(s[1])
     fx = wp.floor(sx)
     fy = wp.floor(sy)
     wx = cubic_weights(sx - fx)
     wy = cubic_weights(sy - fy)
     x0 = int(fx) - 1
     y0 = int(fy) - 1
-    if x0 >= 0 and x0 + 3 < w and y0 >= 0 and y0 + 3 < h:
+    if span_inside(x0, y0, 4, w, h):
         rows = wp.vec4i(src0 + y0, src0 + y0 + 1, src0 + y0 + 2, src0 + y0 + 3)
         ones = wp.vec4i(1, 1, 1, 1)
         return cubic_taps(img, rows, wp.vec4i(x0, x0 + 1, x0 + 2, x0 + 3), True, ones, ones, wx, wy, cval, channels)

@@ -357,17 +357,19 @@ def test_row_and_pixel_kernels_give_the_same_bits_and_match_the_reference(warp, 
     assert_images_agree(by_row, want, img.dtype.type)
 
 
+@pytest.mark.parametrize("order", [0, 1])
 @pytest.mark.parametrize("channels", [1, 2, 3, 4])
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("dtype", DTYPES)
-def test_bilinear_row_chunks_give_the_pixel_kernels_bits(warp, channels, mode, dtype):
-    """The bilinear row kernel's split chunks (cells, then the inside cells'
-    taps, then the mix, then the writes; :data:`~fpiwarp.kernels.nvwarp.factory.ROW_CHUNK`
-    pixels each) give the thread-per-pixel kernel's bits: rows of two full
-    chunks and a part, where pixels whose cells cross the border (sampled
-    whole, with the border rule) sit between pixels read from inside, for
-    every channel count, mode and dtype, with a cval per channel; and
-    within one level of the numpy reference."""
+def test_split_row_chunks_give_the_pixel_kernels_bits(warp, order, channels, mode, dtype):
+    """The nearest and bilinear row kernels' split chunks (taps, then the
+    taps inside read, then the mix, then the writes;
+    :data:`~fpiwarp.kernels.nvwarp.factory.ROW_CHUNK` pixels each) give the
+    thread-per-pixel kernel's bits: rows of two full chunks and a part,
+    where pixels whose taps cross the border (sampled whole, with the
+    border rule) sit between pixels read from inside, for every channel
+    count, mode and dtype, with a cval per channel; and within one level
+    of the numpy reference."""
     from fpiwarp.kernels.nvwarp.factory import ROW_CHUNK
 
     width = 2 * ROW_CHUNK + 13
@@ -375,16 +377,17 @@ def test_bilinear_row_chunks_give_the_pixel_kernels_bits(warp, channels, mode, d
     transform = FPI([[0, 0], [w, 0], [w, h], [0, h]], [[-4, 3], [w + 5, -2], [w - 3, h + 4], [2, h - 5]])
     img = make_image((27, width - 6, channels), dtype, seed=channels)
     cval = np.array([3.0, 250.0, 0.5, 17.0][:channels])
-    by_row, by_pixel = _launch_both_layouts(warp, img, transform, (31, width), 1, mode, cval)
+    by_row, by_pixel = _launch_both_layouts(warp, img, transform, (31, width), order, mode, cval)
     np.testing.assert_array_equal(by_row, by_pixel)
-    want, _ = reference(img, transform, (31, width), 1, mode, cval)
+    want, _ = reference(img, transform, (31, width), order, mode, cval)
     assert_images_agree(by_row, want, img.dtype.type)
 
 
-def test_bilinear_row_chunks_give_cval_at_positions_out_of_range(warp):
+@pytest.mark.parametrize("order", [0, 1])
+def test_split_row_chunks_give_cval_at_positions_out_of_range(warp, order):
     """A Möbius map whose inverse has its pole on a pixel of the output:
     the positions there are not finite or beyond COORD_LIMIT, and the
-    bilinear row kernel gives the thread-per-pixel kernel's bits (cval
+    split row kernels give the thread-per-pixel kernel's bits (cval
     there, the samples around it)."""
     from fpiwarp.kernels.nvwarp.factory import ROW_CHUNK
 
@@ -393,7 +396,7 @@ def test_bilinear_row_chunks_give_cval_at_positions_out_of_range(warp):
     pole = complex(ROW_CHUNK + 5, 9)
     transform = Mobius(1, 0, 1 / pole, 1)
     img = make_image((40, 3 * ROW_CHUNK, 3), np.uint8, seed=11)
-    by_row, by_pixel = _launch_both_layouts(warp, img, transform, (20, 2 * ROW_CHUNK + 3), 1, "constant", 7)
+    by_row, by_pixel = _launch_both_layouts(warp, img, transform, (20, 2 * ROW_CHUNK + 3), order, "constant", 7)
     np.testing.assert_array_equal(by_row, by_pixel)
 
 
