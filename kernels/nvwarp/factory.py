@@ -28,16 +28,15 @@ one each), so that bands of rows split a batch like one tall image. With
 ``rows`` a thread runs along one output row (Warp's CPU device: the
 index arithmetic of the batch and the kernel's arguments are paid once a
 row, not once a pixel), else a thread is one pixel (CUDA). A plain row
-kernel takes its row in chunks of :data:`ROW_CHUNK` pixels: the map over
-a chunk into two local arrays first, in a loop that neither reads the
-image nor writes a pixel, which the C++ compiler vectorizes across pixels
-(16 lanes with AVX-512; the one loop of map, sampler and store it did
-not), then each pixel of the chunk sampled and written. Nearest and
-bilinear row kernels split the sampler too: each pixel's taps (in the
-map's loop), the taps inside the image read into a local array (the only
-data-dependent reads; pixels whose taps cross the border or whose
-positions are out of range sampled whole by :func:`~.sample.sample`),
-bilinear values mixed and rounded in a vectorized loop, then written.
+kernel takes its row in chunks of :data:`ROW_CHUNK` pixels, each in four
+loops: the map and each pixel's taps and weights, into local arrays (a
+loop that neither reads the image nor writes a pixel, which the C++
+compiler vectorizes across pixels: 16 lanes with AVX-512; the one loop of
+map, sampler and store it did not); the taps inside the image read into a
+local array (the only data-dependent reads; pixels whose taps cross the
+border or whose positions are out of range sampled whole by
+:func:`~.sample.sample`); each pixel's value mixed from its taps and
+rounded (vectorized); the values written.
 """
 
 import hashlib
@@ -50,6 +49,7 @@ import warp as wp
 from .sample import (
     bilinear_cell,
     bilinear_mix,
+    cubic_cell,
     in_range,
     level_texel,
     nearest_cell,
@@ -66,8 +66,8 @@ _lock = threading.Lock()
 
 #: Pixels of a row whose map a row kernel (Warp's CPU device) evaluates in
 #: one vectorized loop before it samples them (measured: 8 and 16 slower
-#: than 32; 64 no faster than 32 for the map alone, 4 % faster with order 1's
-#: split sampler).
+#: than 32; 64 no faster than 32 for the map alone, 4 % faster once the
+#: sampler was split too).
 ROW_CHUNK = 64
 
 #: ``index & NONNEG`` is ``index`` for an index that is not negative, and
@@ -179,6 +179,8 @@ def _make_image_kernel(spec):
     Stack = wp.array4d(dtype=T) if STRIDED else wp.array3d(dtype=T)
     label = f"image_{spec.dtype}_o{ORDER}_m{MODE}_c{CHANNELS}{'_aa' if AA else ''}{'_rows' if ROWS else ''}"
     CHUNK = ROW_CHUNK if ROWS and not AA else 0
+    SPLIT = CHUNK > 0 and ORDER in (0, 1, 3)  # the split row chunks (else a pixel at a time)
+    SIDE = (ORDER or 0) + 1 if ORDER != 3 else 4  # the taps' rows and columns: 1, 2 or 4
     mname = _module_name(label, spec)
 
     @wp.func(module=mname)
@@ -244,26 +246,26 @@ def _make_image_kernel(spec):
             channels = wp.static(CHANNELS)
         oy = dst0 + y
         x = x_first
-        if wp.static(CHUNK > 0 and (ORDER == 0 or ORDER == 1)):
-            # Warp's CPU device, nearest and bilinear: the row in chunks, each
-            # in loops such that only the taps' reads and the pixels' writes
-            # are scalar (data-dependent addresses, the image's strides): the
-            # map and each pixel's taps (vectorized); the taps of each pixel
-            # whose taps lie inside the image read into a local array (a
-            # pixel whose taps do not, or whose position is out of range,
-            # sampled whole by the one sampler, with its border rule); for
-            # bilinear, each pixel's value mixed and rounded from its taps
-            # (vectorized); the values written
+        if wp.static(SPLIT):
+            # Warp's CPU device: the row in chunks, each in loops such that
+            # only the taps' reads and the pixels' writes are scalar
+            # (data-dependent addresses, the image's strides): the map and
+            # each pixel's taps and weights (vectorized); the taps of each
+            # pixel whose taps lie inside the image read into a local array
+            # (a pixel whose taps do not, or whose position is out of range,
+            # sampled whole by the one sampler, with its border rule); each
+            # pixel's value mixed from its taps and rounded (vectorized); the
+            # values written. The same arithmetic per pixel as the loop below.
             fy = float(y)
             w = src.shape[1]
             sx = wp.vector(dtype=float, length=wp.static(CHUNK))
             sy = wp.vector(dtype=float, length=wp.static(CHUNK))
-            tx = wp.vector(dtype=float, length=wp.static(CHUNK))
-            ty = wp.vector(dtype=float, length=wp.static(CHUNK))
             x0 = wp.vector(dtype=int, length=wp.static(CHUNK))
             y0 = wp.vector(dtype=int, length=wp.static(CHUNK))
             rim = wp.vector(dtype=int, length=wp.static(CHUNK))  # 1: sampled whole (border rule or cval)
-            taps = wp.vector(dtype=T, length=wp.static(16 * CHUNK))  # bilinear: [(tap·4 + channel)·CHUNK + pixel]
+            # order 1: tx, ty; order 3: wx[0..3], wy[0..3]; [weight·CHUNK + pixel]
+            wts = wp.vector(dtype=float, length=wp.static(2 * SIDE * CHUNK))
+            taps = wp.vector(dtype=T, length=wp.static(4 * SIDE * SIDE * CHUNK))  # [(tap·4 + channel)·CHUNK + pixel]
             rim_v = wp.vector(dtype=float, length=wp.static(4 * CHUNK))  # [channel·CHUNK + pixel]
             vals = wp.vector(dtype=T, length=wp.static(4 * CHUNK))
             while x < x_last:
@@ -273,15 +275,20 @@ def _make_image_kernel(spec):
                     si, dzi, dzbi = map_at(blk, wp.vec2(float(x + i), fy))
                     sx[i] = si[0]
                     sy[i] = si[1]
+                    if wp.static(ORDER == 0):
+                        xi, yi = nearest_cell(si)
                     if wp.static(ORDER == 1):
                         xi, yi, txi, tyi = bilinear_cell(si)
-                        tx[i] = txi
-                        ty[i] = tyi
-                    else:
-                        xi, yi = nearest_cell(si)
+                        wts[i] = txi
+                        wts[wp.static(CHUNK) + i] = tyi
+                    if wp.static(ORDER == 3):
+                        xi, yi, wxi, wyi = cubic_cell(si)
+                        for k in range(4):
+                            wts[k * wp.static(CHUNK) + i] = wxi[k]
+                            wts[(4 + k) * wp.static(CHUNK) + i] = wyi[k]
                     x0[i] = xi
                     y0[i] = yi
-                    rim[i] = 1 - int(in_range(si) and span_inside(xi, yi, wp.static(ORDER + 1), w, h))
+                    rim[i] = 1 - int(in_range(si) and span_inside(xi, yi, wp.static(SIDE), w, h))
                     i = i + 1
                 i = wp.int32(0)
                 while i < count:
@@ -290,13 +297,10 @@ def _make_image_kernel(spec):
                         q = x0[i] & wp.static(NONNEG)
                         for c in range(4):
                             if c < channels:
-                                if wp.static(ORDER == 1):
-                                    taps[c * wp.static(CHUNK) + i] = src[r, q, c]
-                                    taps[(4 + c) * wp.static(CHUNK) + i] = src[r, q + 1, c]
-                                    taps[(8 + c) * wp.static(CHUNK) + i] = src[r + 1, q, c]
-                                    taps[(12 + c) * wp.static(CHUNK) + i] = src[r + 1, q + 1, c]
-                                else:  # the pixel as it is (what rounding its float value gives back)
-                                    vals[c * wp.static(CHUNK) + i] = src[r, q, c]
+                                for dy in range(wp.static(SIDE)):
+                                    for dx in range(wp.static(SIDE)):
+                                        taps[((dy * wp.static(SIDE) + dx) * 4 + c) * wp.static(CHUNK) + i] = src[
+                                            r + dy, q + dx, c]
                     else:
                         si = wp.vec2(sx[i], sy[i])
                         vi = cval
@@ -304,23 +308,31 @@ def _make_image_kernel(spec):
                             vi = sample(src, src0, h, w, si, wp.static(ORDER), mode, cval, channels)
                         for c in range(4):
                             if c < channels:
-                                if wp.static(ORDER == 1):
-                                    rim_v[c * wp.static(CHUNK) + i] = vi[c]
-                                else:
-                                    vals[c * wp.static(CHUNK) + i] = dst.dtype(pixel_value(vi[c], wp.static(TOP)))
+                                rim_v[c * wp.static(CHUNK) + i] = vi[c]
                     i = i + 1
-                if wp.static(ORDER == 1):
-                    i = wp.int32(0)
-                    while i < count:
-                        for c in range(4):
-                            if c < channels:
+                i = wp.int32(0)
+                while i < count:
+                    for c in range(4):
+                        if c < channels:
+                            if wp.static(ORDER == 0):
+                                vm = float(taps[c * wp.static(CHUNK) + i])
+                            if wp.static(ORDER == 1):
                                 vm = bilinear_mix(float(taps[c * wp.static(CHUNK) + i]),
                                                   float(taps[(4 + c) * wp.static(CHUNK) + i]),
                                                   float(taps[(8 + c) * wp.static(CHUNK) + i]),
-                                                  float(taps[(12 + c) * wp.static(CHUNK) + i]), tx[i], ty[i])
-                                vm = wp.where(rim[i] != 0, rim_v[c * wp.static(CHUNK) + i], vm)
-                                vals[c * wp.static(CHUNK) + i] = dst.dtype(pixel_value(vm, wp.static(TOP)))
-                        i = i + 1
+                                                  float(taps[(12 + c) * wp.static(CHUNK) + i]),
+                                                  wts[i], wts[wp.static(CHUNK) + i])
+                            if wp.static(ORDER == 3):  # cubic_taps' sums, in its order
+                                vm = 0.0
+                                for dy in range(4):
+                                    acc = 0.0
+                                    for dx in range(4):
+                                        acc = acc + wts[dx * wp.static(CHUNK) + i] * float(
+                                            taps[((dy * 4 + dx) * 4 + c) * wp.static(CHUNK) + i])
+                                    vm = vm + wts[(4 + dy) * wp.static(CHUNK) + i] * acc
+                            vm = wp.where(rim[i] != 0, rim_v[c * wp.static(CHUNK) + i], vm)
+                            vals[c * wp.static(CHUNK) + i] = dst.dtype(pixel_value(vm, wp.static(TOP)))
+                    i = i + 1
                 i = wp.int32(0)
                 oyp = oy & wp.static(NONNEG)
                 while i < count:
@@ -330,32 +342,7 @@ def _make_image_kernel(spec):
                             dst[oyp, xi, c] = vals[c * wp.static(CHUNK) + i]
                     i = i + 1
                 x = x + count
-        if wp.static(CHUNK > 0 and ORDER != 0 and ORDER != 1):
-            # Warp's CPU device: the row in chunks, the map over a chunk into
-            # local arrays first (a loop without image reads or stores, which
-            # the C++ compiler vectorizes across pixels), then each pixel
-            # sampled and written; the same arithmetic per pixel as the loop below
-            fy = float(y)
-            while x < x_last:
-                sx = wp.vector(dtype=float, length=wp.static(CHUNK))
-                sy = wp.vector(dtype=float, length=wp.static(CHUNK))
-                count = wp.min(wp.static(CHUNK), x_last - x)
-                i = wp.int32(0)
-                while i < count:
-                    si, dzi, dzbi = map_at(blk, wp.vec2(float(x + i), fy))
-                    sx[i] = si[0]
-                    sy[i] = si[1]
-                    i = i + 1
-                i = wp.int32(0)
-                while i < count:
-                    si = wp.vec2(sx[i], sy[i])
-                    vi = cval
-                    if in_range(si):
-                        vi = sample(src, src0, h, src.shape[1], si, order, mode, cval, channels)
-                    store_pixel(dst, oy, x + i, vi, channels, wp.static(TOP))
-                    i = i + 1
-                x = x + count
-        if wp.static(CHUNK == 0):  # (a chunked kernel has no pixel left for it: not generated there)
+        if wp.static(not SPLIT):
             while x < x_last:  # (a while loop: Warp's range loop carries a step sign through every iteration)
                 z = wp.vec2(float(x), float(y))
                 s, dz, dzb = map_at(blk, z)

@@ -153,6 +153,17 @@ def span_inside(x0: int, y0: int, n: int, w: int, h: int):
 
 
 @wp.func
+def cubic_cell(s: wp.vec2):
+    """Order 3's taps at s (in range): the first of its 4 × 4 (x0, y0) and
+    the weights of its columns and rows (:func:`cubic_weights`)."""
+    sx = clip_coord(s[0])
+    sy = clip_coord(s[1])
+    fx = wp.floor(sx)
+    fy = wp.floor(sy)
+    return int(fx) - 1, int(fy) - 1, cubic_weights(sx - fx), cubic_weights(sy - fy)
+
+
+@wp.func
 def bilinear_mix(v00: float, v01: float, v10: float, v11: float, tx: float, ty: float):
     """Order 1's value from its four taps (rows first, then between them)."""
     return (1.0 - ty) * ((1.0 - tx) * v00 + tx * v01) + ty * ((1.0 - tx) * v10 + tx * v11)
@@ -222,14 +233,7 @@ def sample(
         return bilinear_taps(img, src0 + border_index(y0, h, mode), src0 + border_index(y0 + 1, h, mode),
                              border_index(x0, w, mode), border_index(x0 + 1, w, mode), in_y0 and in_x0,
                              in_y0 and in_x1, in_y1 and in_x0, in_y1 and in_x1, tx, ty, cval, channels)
-    sx = clip_coord(s[0])
-    sy = clip_coord(s[1])
-    fx = wp.floor(sx)
-    fy = wp.floor(sy)
-    wx = cubic_weights(sx - fx)
-    wy = cubic_weights(sy - fy)
-    x0 = int(fx) - 1
-    y0 = int(fy) - 1
+    x0, y0, wx, wy = cubic_cell(s)
     if span_inside(x0, y0, 4, w, h):
         rows = wp.vec4i(src0 + y0, src0 + y0 + 1, src0 + y0 + 2, src0 + y0 + 3)
         ones = wp.vec4i(1, 1, 1, 1)

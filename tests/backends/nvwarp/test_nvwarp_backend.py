@@ -357,13 +357,13 @@ def test_row_and_pixel_kernels_give_the_same_bits_and_match_the_reference(warp, 
     assert_images_agree(by_row, want, img.dtype.type)
 
 
-@pytest.mark.parametrize("order", [0, 1])
+@pytest.mark.parametrize("order", ORDERS)
 @pytest.mark.parametrize("channels", [1, 2, 3, 4])
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("dtype", DTYPES)
 def test_split_row_chunks_give_the_pixel_kernels_bits(warp, order, channels, mode, dtype):
-    """The nearest and bilinear row kernels' split chunks (taps, then the
-    taps inside read, then the mix, then the writes;
+    """The row kernels' split chunks (taps and weights, then the taps
+    inside read, then the mix, then the writes;
     :data:`~fpiwarp.kernels.nvwarp.factory.ROW_CHUNK` pixels each) give the
     thread-per-pixel kernel's bits: rows of two full chunks and a part,
     where pixels whose taps cross the border (sampled whole, with the
@@ -383,7 +383,7 @@ def test_split_row_chunks_give_the_pixel_kernels_bits(warp, order, channels, mod
     assert_images_agree(by_row, want, img.dtype.type)
 
 
-@pytest.mark.parametrize("order", [0, 1])
+@pytest.mark.parametrize("order", ORDERS)
 def test_split_row_chunks_give_cval_at_positions_out_of_range(warp, order):
     """A Möbius map whose inverse has its pole on a pixel of the output:
     the positions there are not finite or beyond COORD_LIMIT, and the
