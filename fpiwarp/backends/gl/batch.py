@@ -175,8 +175,8 @@ def warp_batch(warper, stack, blocks, output_shape, *, order, mode, cval, antial
             if seeded and splits(single[idx[0] if own else 0]):
                 # the single warp's split draw (band.py), which the instanced draw lacks: image by image
                 for i in idx:
-                    out[i] = warper.warp_block(stack[i], single[i if own else 0], (oh, ow), order=order, mode=mode,
-                                               cval=cval)
+                    warper.warp_block(stack[i], single[i if own else 0], (oh, ow), order=order, mode=mode, cval=cval,
+                                      out=out[i])
                 continue
             warper.short_map, warper.newton_map = short, newton  # as set_map sets them for one of the maps
             key, packs = warper.warp_program_key(stack[0], order, mode, stages, antialias, seeded=seeded)

@@ -283,10 +283,11 @@ class GLWarper:
                                hardware_filter=hardware_filter, antialias=antialias)
 
     def warp_block(self, image, block, output_shape, *, order=1, mode="constant", cval=None, hardware_filter=False,
-                   antialias=False):
+                   antialias=False, out=None):
         """:meth:`warp_image` by the map from output to source whose
         parameter block is ``block`` (``transform.inverse.params()``, packed
-        once by a bound map)."""
+        once by a bound map). ``out``: a C-contiguous (rows, cols, C) array
+        of the image's dtype to write into (a batch's image), else a new one."""
         image, cval = check_sampling(image, order, mode, cval)
         if hardware_filter:
             if order not in (0, 1):
@@ -296,7 +297,7 @@ class GLWarper:
             if antialias:
                 _ = self.anisotropy  # checked (by drawing) before this call binds its map and textures
         stages = self.set_map(block)
-        return self._render(image, output_shape, order, mode, cval, None, hardware_filter, stages, antialias)
+        return self._render(image, output_shape, order, mode, cval, None, hardware_filter, stages, antialias, out)
 
     # ---- per vertex, rasterized
     def warp_image_mesh(self, image, transform, output_shape, *, order=1, mode="constant", cval=None,
@@ -331,11 +332,12 @@ class GLWarper:
         caller = bound_framebuffer(self.ctx)
         return self.targets.dummy if self.targets.owns(caller) else caller
 
-    def _render(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False):
+    def _render(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False,
+                out=None):
         caller = self._caller_framebuffer()
         try:
             return self._render_bound(image, output_shape, order, mode, cval, mesh, hardware_filter, stages,
-                                      antialias)
+                                      antialias, out)
         finally:
             caller.use()  # a caller drawing into its own framebuffer keeps it bound
 
@@ -374,10 +376,15 @@ class GLWarper:
         fill = key.with_changes(stages=None, output="fill_int" if integer else "fill")
         return key.with_changes(vertex=glsl.MESH_VERT, fragment=glsl.MESH_FRAG), fill, False
 
-    def _render_bound(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False):
+    def _render_bound(self, image, output_shape, order, mode, cval, mesh, hardware_filter, stages, antialias=False,
+                      out=None):
         h, w, c = image.shape
         oh, ow = (int(v) for v in output_shape)
-        out = np.empty((oh, ow, c), dtype=image.dtype)
+        if out is None:
+            out = np.empty((oh, ow, c), dtype=image.dtype)
+        elif out.shape != (oh, ow, c) or out.dtype != image.dtype or not out.flags.c_contiguous:
+            raise ValueError(f"out must be a C-contiguous {(oh, ow, c)} {image.dtype} array, "
+                             f"got {out.shape} {out.dtype}")
         tiled = h > self.max_size or w > self.max_size or antialias and max(atlas_layout(h, w)[0]) > self.max_size
         hw = hardware_filter and not tiled
         seeded = coarse.chosen(self, (oh, ow))
