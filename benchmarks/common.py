@@ -58,11 +58,24 @@ def _cpuinfo():
 
 
 def cpu_model():
-    """The CPU's model name (Linux /proc/cpuinfo, else platform's guess)."""
+    """The CPU's model name with its family and model numbers where
+    /proc/cpuinfo has them (a virtual machine may name only the vendor's
+    line, "AMD EPYC", for CPUs of different generations: family 25 is Zen 3
+    and 4, 26 Zen 5), else platform's guess."""
+    fields = {}
     for line in _cpuinfo().splitlines():
-        if line.lower().startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return platform.processor() or platform.machine()
+        key, _, value = line.partition(":")
+        key = key.strip().lower()
+        if key in ("model name", "cpu family", "model") and key not in fields:
+            fields[key] = value.strip()
+        if not line.strip() and fields:  # the first processor's block only
+            break
+    name = fields.get("model name")
+    if not name:
+        return platform.processor() or platform.machine()
+    if "cpu family" in fields and "model" in fields:
+        return f"{name}, family {fields['cpu family']} model {fields['model']}"
+    return name
 
 
 def cpu_isa():
