@@ -47,6 +47,7 @@ import numpy as np
 import warp as wp
 
 from .sample import (
+    TAP_SIDE,
     bilinear_cell,
     bilinear_mix,
     cubic_cell,
@@ -179,8 +180,8 @@ def _make_image_kernel(spec):
     Stack = wp.array4d(dtype=T) if STRIDED else wp.array3d(dtype=T)
     label = f"image_{spec.dtype}_o{ORDER}_m{MODE}_c{CHANNELS}{'_aa' if AA else ''}{'_rows' if ROWS else ''}"
     CHUNK = ROW_CHUNK if ROWS and not AA else 0
-    SPLIT = CHUNK > 0 and ORDER in (0, 1, 3)  # the split row chunks (else a pixel at a time)
-    SIDE = (ORDER or 0) + 1 if ORDER != 3 else 4  # the taps' rows and columns: 1, 2 or 4
+    SPLIT = CHUNK > 0 and ORDER in TAP_SIDE  # the split row chunks (else a pixel at a time)
+    SIDE = TAP_SIDE.get(ORDER, 1)
     mname = _module_name(label, spec)
 
     @wp.func(module=mname)

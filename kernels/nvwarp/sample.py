@@ -145,10 +145,14 @@ def nearest_cell(s: wp.vec2):
     return int(wp.floor(clip_coord(s[0]) + 0.5)), int(wp.floor(clip_coord(s[1]) + 0.5))
 
 
+#: The rows (and columns) of taps each order reads: its n × n taps.
+TAP_SIDE = {0: 1, 1: 2, 3: 4}
+
+
 @wp.func
 def span_inside(x0: int, y0: int, n: int, w: int, h: int):
-    """Whether the n × n taps from (x0, y0) (order 0: 1, 1: 2, 3: 4) all lie
-    inside the w × h image, where the taps are read as they are."""
+    """Whether the n × n taps from (x0, y0) (n: :data:`TAP_SIDE` of the
+    order) all lie inside the w × h image, where the taps are read as they are."""
     return x0 >= 0 and x0 + n <= w and y0 >= 0 and y0 + n <= h
 
 
@@ -376,4 +380,3 @@ def store_pixel(out: wp.array3d(dtype=Any), y: int, x: int, v: wp.vec4, channels
     for c in range(4):
         if c < channels:
             out[y, x, c] = out.dtype(pixel_value(v[c], top))
-
