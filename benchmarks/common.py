@@ -316,8 +316,9 @@ def random_frame_maps(n, height, width, seed=0):
 
 
 def test_image(height, width, dtype, rng, channels=3):
-    """A smooth picture with some texture and noise (uint8 0..255 or float32
-    0..1), RGB by default; a fourth channel repeats the first."""
+    """A smooth picture with some texture and noise (uint8 0..255, uint16
+    0..65535 or float32 0..1), RGB by default; a fourth channel repeats the
+    first."""
     y, x = np.mgrid[0:height, 0:width].astype(np.float32)
     planes = [0.5 + 0.5 * np.sin(x / 17.0), 0.5 + 0.5 * np.cos(y / 23.0), ((x // 32 + y // 32) % 2).astype(np.float32)]
     base = np.stack((planes * 2)[:channels], axis=-1)
@@ -325,6 +326,8 @@ def test_image(height, width, dtype, rng, channels=3):
     base = np.clip(base, 0, 1)
     if np.dtype(dtype) == np.uint8:
         return (base * 255 + 0.5).astype(np.uint8)
+    if np.dtype(dtype) == np.uint16:
+        return (base * 65535 + 0.5).astype(np.uint16)
     return base.astype(np.float32)
 
 

@@ -1,8 +1,8 @@
 """Side by side: the OpenCL warp_image kernel built from two source trees.
 
 ``python -m benchmarks.opencl_kernel_ab OLD_KERNELS_DIR NEW_KERNELS_DIR
-[--size 4k|1k|256] [--dtype uint8|float32] [--old-tile X,Y] [--new-tile X,Y]
-[--repeat N]`` builds ``fpiwarp.cl`` + ``fpiwarp_map.h`` of each folder (for
+[--size 4k|1k|256] [--dtype uint8|uint16|float32] [--channels C] [--old-tile X,Y]
+[--new-tile X,Y] [--repeat N]`` builds ``fpiwarp.cl`` + ``fpiwarp_map.h`` of each folder (for
 instance the kernels/ of another checkout, and this one's) with this
 checkout's build options for an FPI warp of a test image (bilinear,
 constant border), and times launch + finish of each, interleaved with
@@ -52,7 +52,8 @@ def main(argv=None):
     parser.add_argument("old")
     parser.add_argument("new")
     parser.add_argument("--size", choices=sorted(SIZES), default="4k")
-    parser.add_argument("--dtype", choices=["uint8", "float32"], default="uint8")
+    parser.add_argument("--dtype", choices=["uint8", "uint16", "float32"], default="uint8")
+    parser.add_argument("--channels", type=int, choices=[1, 2, 3, 4], default=3)
     parser.add_argument("--old-tile", type=lambda s: tuple(int(v) for v in s.split(",")))
     parser.add_argument("--new-tile", type=lambda s: tuple(int(v) for v in s.split(",")))
     parser.add_argument("--repeat", type=int, default=9)
@@ -60,10 +61,12 @@ def main(argv=None):
 
     be = get_backend("opencl")
     h, w = SIZES[args.size]
-    image = test_image(h, w, args.dtype, np.random.default_rng(0))
+    image = test_image(h, w, args.dtype, np.random.default_rng(0), args.channels)
+    if args.channels == 1:
+        image = np.ascontiguousarray(image[..., 0])
     fpi = fpiwarp.FPI(*corner_quads(h, w))
     block = np.ascontiguousarray(fpi.inverse.params(), dtype=np.float32)
-    _, options, local_x = be.image_program(image.dtype, 3, 1, "constant", w, False, be.block_kind(block))
+    _, options, local_x = be.image_program(image.dtype, args.channels, 1, "constant", w, False, be.block_kind(block))
     mf = cl.mem_flags
     blk = cl.Buffer(be.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=block)
     src = cl.Buffer(be.context, mf.READ_ONLY, image.nbytes + be.image_slack)

@@ -926,14 +926,24 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
     }
 #define FW_CHANNEL_IN(k, _) acc##k += wgt * FW_VALUE(k, at);
 /* FW_PAIR (bilinear on CPUs, FW_VN > 1): the interior path reads a row's
- * two taps, 2 FW_C adjacent elements, as FW_PAIR_CHUNKS 64-bit loads a
- * lane (one 32-bit load where the pair fits in it) instead of one load per
- * tap (per channel for floats): fewer loads and lane inserts. Element e of
- * the pair is half e / FW_HALF_ELEMS of the chunks' 32-bit halves, bits
- * from FW_ESIZE 8 (e % FW_HALF_ELEMS) on. The loads run past the pair by
- * up to FW_PAIR_SLACK bytes: where they do, the interior path leaves out
- * the last row, as for FW_WORD_TAIL. The same values, summed in the same
- * order as FW_TAP_IN's, so the same results bit for bit. */
+ * two taps, 2 FW_C adjacent elements, in one load a lane instead of one
+ * load per tap (per channel for floats):
+ * - a pair of at most 4 bytes (uint8 with 1-2 channels, uint16 with 1):
+ *   the tap's 32-bit word (FW_WORD_BITS), one gather for all lanes;
+ * - an integer pair of 5-8 bytes (uint8 with 3-4 channels, uint16 with
+ *   2): one 64-bit gather, element e in the low or high half;
+ * - larger pairs and every float pair: one vector load a lane
+ *   (FW_PAIR_VW elements, the next power of two), element e across the
+ *   lanes put together by the compiler's shuffles. These replaced 2-4
+ *   64-bit gathers (vpgatherqq) a row whose latency PoCL's kernel waited
+ *   on (perf annotate, cpu_profile.md): on a pthread-skylake-avx512 Zen 5
+ *   the 4K RGB float32 kernel took 0.52-0.67x the time, uint16 RGB
+ *   0.68-0.74x; for uint8 RGB at 256 x 256 they were 1.07-1.12x slower
+ *   than the one gather, hence its case.
+ * The loads run past the pair by up to FW_PAIR_SLACK bytes: where they
+ * do, the interior path leaves out the last row, as for FW_WORD_TAIL. The
+ * same values, summed in the same order as FW_TAP_IN's, so the same
+ * results bit for bit. */
 #if !FW_INT
 #define FW_ESIZE 4 /* float */
 #elif FW_TOP == 255
@@ -943,15 +953,22 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
 #endif
 #if FW_ORDER == 1 && FW_VN > 1 && defined(__ENDIAN_LITTLE__) && defined(FW_ESIZE) && !defined(FW_NO_PAIR)
 #define FW_PAIR 1
-#define FW_PAIR_BYTES (2 * FW_C * FW_ESIZE)
-#define FW_HALF_ELEMS (4 / FW_ESIZE)
-#if FW_PAIR_BYTES <= 4
-#define FW_PAIR_CHUNKS 0 /* one 32-bit load */
-#define FW_PAIR_SLACK (4 - FW_PAIR_BYTES)
-#else
-#define FW_PAIR_CHUNKS ((FW_PAIR_BYTES + 7) / 8)
-#define FW_PAIR_SLACK (8 * FW_PAIR_CHUNKS - FW_PAIR_BYTES)
+#define FW_PAIR_ELEMS (2 * FW_C)
+#define FW_PASTE_(a, b) a##b
+#define FW_PASTE(a, b) FW_PASTE_(a, b)
+#if FW_PAIR_ELEMS * FW_ESIZE <= 4
+#if !FW_WORD_BITS
+#error "a pair of at most 4 bytes is read as the tap's 32-bit word (FW_WORD_BITS)"
 #endif
+#define FW_PAIR_SLACK (4 - FW_PAIR_ELEMS * FW_ESIZE)
+#define FW_PAIR_LOAD()     \
+    const int off = 0;     \
+    FW_TAP_LOAD(at)
+#define FW_PAIR_ELEM(e) \
+    FW_CONVERT(float, (word >> (8 * FW_ESIZE * (e))) & (uint)FW_TOP)
+#elif FW_INT && FW_PAIR_ELEMS * FW_ESIZE <= 8
+/* one 64-bit gather for all lanes; element e in its low or high half */
+#define FW_PAIR_SLACK (8 - FW_PAIR_ELEMS * FW_ESIZE)
 #if FW_VN == 8
 typedef ulong8 fw_lv;
 #else
@@ -960,36 +977,40 @@ typedef ulong16 fw_lv;
 typedef struct __attribute__((packed)) {
     ulong v;
 } fw_chunk;
-#define FW_CHUNK_AT(k) ((__global const fw_chunk *)(img + FW_LANE(at, k)) + c)->v
-/* words[h]: the pair's 32-bit halves (half 2c and 2c + 1: chunk c's low
- * and high); indexed by constants only, so it lives in registers */
-#if FW_PAIR_CHUNKS == 0 && !FW_WORD_BITS
-#error "a pair of at most 4 bytes is read as the tap's 32-bit word (FW_WORD_BITS)"
-#endif
-#if FW_PAIR_CHUNKS == 0 /* a pair of at most 4 bytes: FW_WORD_BITS is set, the tap's word holds both */
-#define FW_PAIR_LOAD()      \
-    fw_uv words[1];         \
-    {                       \
-        const int off = 0;  \
-        FW_TAP_LOAD(at)     \
-        words[0] = word;    \
-    }
-#else
-#define FW_PAIR_LOAD()                                       \
-    fw_uv words[2 * FW_PAIR_CHUNKS];                          \
-    for (int c = 0; c < FW_PAIR_CHUNKS; ++c) {               \
-        fw_lv part = FW_GATHER(fw_lv, FW_CHUNK_AT);          \
-        words[2 * c] = FW_CONVERT(uint, part);                \
-        words[2 * c + 1] = FW_CONVERT(uint, part >> (ulong)32); \
-    }
-#endif
-/* element e of the pair, as a float */
-#define FW_PAIR_HALF(e) words[(e) / FW_HALF_ELEMS]
-#if FW_INT
+#define FW_CHUNK_AT(k) ((__global const fw_chunk *)(img + FW_LANE(at, k)))->v
+#define FW_PAIR_LOAD()                                 \
+    const fw_lv chunk = FW_GATHER(fw_lv, FW_CHUNK_AT); \
+    const fw_uv low = FW_CONVERT(uint, chunk), high = FW_CONVERT(uint, chunk >> (ulong)32);
+#define FW_HALF_ELEMS (4 / FW_ESIZE)
+#define FW_PAIR_HALF(e) ((e) < FW_HALF_ELEMS ? low : high)
 #define FW_PAIR_ELEM(e) \
     FW_CONVERT(float, (FW_PAIR_HALF(e) >> (8 * FW_ESIZE * ((e) % FW_HALF_ELEMS))) & (uint)FW_TOP)
 #else
-#define FW_PAIR_ELEM(e) FW_AS_FLOAT(FW_PAIR_HALF(e))
+#if FW_PAIR_ELEMS <= 2
+#define FW_PAIR_VW 2
+#elif FW_PAIR_ELEMS <= 4
+#define FW_PAIR_VW 4
+#else
+#define FW_PAIR_VW 8
+#endif
+#define FW_PAIR_SLACK (FW_ESIZE * (FW_PAIR_VW - FW_PAIR_ELEMS))
+/* pair##k: lane k's FW_PAIR_VW elements from its first tap on */
+#define FW_PAIR_LANE(k, _) \
+    const FW_PASTE(FW_T, FW_PAIR_VW) pair##k = FW_PASTE(vload, FW_PAIR_VW)(0, img + FW_LANE(at, k));
+#define FW_PAIR_LOAD() FW_EACH_LANE(FW_PAIR_LANE, _)
+#if FW_VN == 8
+#define FW_PAIR_LANES(e) pair0[e], pair1[e], pair2[e], pair3[e], pair4[e], pair5[e], pair6[e], pair7[e]
+#else
+#define FW_PAIR_LANES(e)                                                                                \
+    pair0[e], pair1[e], pair2[e], pair3[e], pair4[e], pair5[e], pair6[e], pair7[e], pair8[e], pair9[e], \
+        pair10[e], pair11[e], pair12[e], pair13[e], pair14[e], pair15[e]
+#endif
+/* element e of the pair at every lane, as floats */
+#if FW_INT
+#define FW_PAIR_ELEM(e) FW_CONVERT(float, (FW_PASTE(FW_T, FW_VN))(FW_PAIR_LANES(e)))
+#else
+#define FW_PAIR_ELEM(e) ((fw_fv)(FW_PAIR_LANES(e)))
+#endif
 #endif
 #endif
 #ifdef FW_PAIR

@@ -253,11 +253,12 @@ def array_before_a_guard_page(shape, dtype):
 
 @pytest.mark.skipif(not hasattr(mmap, "PROT_READ") or sys.platform != "linux", reason="needs mprotect")
 @pytest.mark.parametrize("mode", ["edge", "constant"])
-@pytest.mark.parametrize("dtype, channels", IN_PLACE_CASES[2:])
+@pytest.mark.parametrize("dtype, channels", IN_PLACE_CASES)
 def test_sources_read_in_place_are_not_read_past_their_last_byte(opencl_backend, dtype, channels, mode):
     """A source whose last pixel ends at a page boundary followed by a
-    PROT_NONE page, read in place: a word load of the last pixel(s) that ran
-    past the end would fault. The warps reach that pixel through the
+    PROT_NONE page, read in place: a load of the last pixel(s) that ran
+    past the end (a 32-bit word, a 64-bit gather or a vector load of a
+    row's two taps, FW_PAIR) would fault; every dtype and channel count. The warps reach that pixel through the
     general path (taps clamped to the corner, edge mode, or replaced by
     cval) and next to the last row through the interior path (a sub-pixel
     shift), and equal the uploaded copy's."""
