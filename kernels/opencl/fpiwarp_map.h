@@ -1052,8 +1052,10 @@ typedef struct __attribute__((packed)) {
  * changes no value, and never faults). The hardware prefetchers did not
  * follow a tile's rows of gathers: on a pthread-skylake-avx512 Zen 5 the
  * bilinear kernel took 0.60-0.89x the time with it at 1024² and 4K
- * (uint8, uint16, float32; 1-4 channels), 2-10 rows all within 0.64-0.81x
- * at 4K uint8 RGB, and the same at 256² (cached; cpu_profile.md). */
+ * (uint8, uint16, float32; 1-4 channels) in 32 x 8 tiles of 8 lanes,
+ * 2-10 rows all within 0.64-0.81x at 4K uint8 RGB; less in the 16 x 16
+ * tiles of 16 lanes its tuner chose (4K uint8 RGB 0.83-0.93x), the same
+ * at 256² (cached; cpu_profile.md). */
 #if FW_VN > 1 && defined(__has_builtin) && !defined(FW_NO_PREFETCH)
 #if __has_builtin(__builtin_prefetch)
 #define FW_PREFETCH_ROWS 4
