@@ -80,9 +80,7 @@
 #if FW_POINT_VN == 8
 /* 4-element vectors of points (two points each): 256 bits at most, the
  * widest that builtins take by value without AVX-512 */
-#define FW_POINT_CAT2(a, b) a##b
-#define FW_POINT_CAT(a, b) FW_POINT_CAT2(a, b)
-#define FW_TO_POINT4 FW_POINT_CAT(convert_, FW_POINT_CAT(FW_POINT, 4))
+#define FW_TO_POINT4 FW_PASTE(convert_, FW_PASTE(FW_POINT, 4))
 #endif
 __kernel __attribute__((reqd_work_group_size(FW_LOCAL_X, 1, 1)))
 void map_points(fw_block_t block, __global const FW_POINT *restrict pts,

@@ -36,6 +36,10 @@
 /* every helper is inlined: calls left in a kernel stop CPU vectorization */
 #define FW_FN static inline __attribute__((always_inline))
 
+/* a ## b after both are expanded (type names such as FW_T and a width) */
+#define FW_PASTE_(a, b) a##b
+#define FW_PASTE(a, b) FW_PASTE_(a, b)
+
 #ifndef FW_STAGE_ROWS
 #error "the host prepends the block contract (fpiwarp.block.codegen.opencl_preamble)"
 #endif
@@ -954,8 +958,6 @@ FW_FN fw_iv fw_border(fw_iv i, int n)
 #if FW_ORDER == 1 && FW_VN > 1 && defined(__ENDIAN_LITTLE__) && defined(FW_ESIZE) && !defined(FW_NO_PAIR)
 #define FW_PAIR 1
 #define FW_PAIR_ELEMS (2 * FW_C)
-#define FW_PASTE_(a, b) a##b
-#define FW_PASTE(a, b) FW_PASTE_(a, b)
 #if FW_PAIR_ELEMS * FW_ESIZE <= 4
 #if !FW_WORD_BITS
 #error "a pair of at most 4 bytes is read as the tap's 32-bit word (FW_WORD_BITS)"
