@@ -28,7 +28,6 @@ import argparse
 import json
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -43,20 +42,7 @@ KERNELS = ("opencl", "gl")
 
 def interleaved(fns, rounds):
     """{name: best seconds} of ``rounds`` interleaved rounds after one warm-up call each."""
-    for fn in fns.values():
-        fn()
-    times = {name: [] for name in fns}
-    for _ in range(rounds):
-        for name, fn in fns.items():
-            t0 = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - t0)
-    return {name: min(ts) for name, ts in times.items()}
-
-
-def _maps(f, h, w):
-    s = fpiwarp.source_positions(f, (h, w)).astype(np.float32)
-    return np.ascontiguousarray(s[..., 0]), np.ascontiguousarray(s[..., 1])
+    return common.bests(common.interleaved(fns, rounds)[0])
 
 
 def image_rows(h, w, dtype, rounds, backends, warper=False):
@@ -67,13 +53,11 @@ def image_rows(h, w, dtype, rounds, backends, warper=False):
     small calls of both (256² opencl Warper 2.57x cv2.remap interleaved
     with gl, 1.21x without, on a 2-core Zen 5). The ratios are to the
     best cv2.remap time of all the groups."""
-    import cv2
-
     rng = np.random.default_rng(0)
     img = test_image(h, w, dtype, rng)
     f = fpiwarp.FPI(*corner_quads(h, w))
-    mx, my = _maps(f, h, w)
     cv2_label = "cv2.remap (precomputed maps)"
+    remap = common.remap_call(img, f)
     groups = {}
     if warper:
         default = fpiwarp.Warper(f)
@@ -88,8 +72,7 @@ def image_rows(h, w, dtype, rounds, backends, warper=False):
             groups.setdefault(b, {})[f"warp_image, {b}"] = lambda b=b: fpiwarp.warp_image(img, f, backend=b)
     best = {cv2_label: float("inf")}
     for fns in groups.values():
-        got = interleaved({cv2_label: lambda: cv2.remap(img, mx, my, cv2.INTER_LINEAR,
-                                                        borderMode=cv2.BORDER_CONSTANT), **fns}, rounds)
+        got = interleaved({cv2_label: remap, **fns}, rounds)
         best[cv2_label] = min(best[cv2_label], got.pop(cv2_label))
         best.update(got)
     base = best[cv2_label]

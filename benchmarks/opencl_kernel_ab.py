@@ -64,8 +64,6 @@ def main(argv=None):
     be = get_backend("opencl")
     h, w = SIZES[args.size]
     image = test_image(h, w, args.dtype, np.random.default_rng(0), args.channels)
-    if args.channels == 1:
-        image = np.ascontiguousarray(image[..., 0])
     fpi = fpiwarp.FPI(*corner_quads(h, w))
     block = np.ascontiguousarray(fpi.inverse.params(), dtype=np.float32)
     _, options, local_x = be.image_program(image.dtype, args.channels, 1, "constant", w, False, be.block_kind(block))

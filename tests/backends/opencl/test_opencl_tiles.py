@@ -258,8 +258,8 @@ def test_sources_read_in_place_are_not_read_past_their_last_byte(opencl_backend,
     """A source whose last pixel ends at a page boundary followed by a
     PROT_NONE page, read in place: a load of the last pixel(s) that ran
     past the end (a 32-bit word, a 64-bit gather or a vector load of a
-    row's two taps, FW_PAIR) would fault; every dtype and channel count. The warps reach that pixel through the
-    general path (taps clamped to the corner, edge mode, or replaced by
+    row's two taps, FW_PAIR) would fault; every case of IN_PLACE_CASES.
+    The warps reach that pixel through the general path (taps clamped to the corner, edge mode, or replaced by
     cval) and next to the last row through the interior path (a sub-pixel
     shift), and equal the uploaded copy's."""
     h, w = 1024, 1032 // (channels * np.dtype(dtype).itemsize)  # 1032 KiB: whole pages
