@@ -22,14 +22,6 @@
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #endif
 
-#ifndef FW_LOCAL_X
-#define FW_LOCAL_X 64
-#endif
-/* warp_image's work-groups are FW_LOCAL_X x FW_LOCAL_Y pixels */
-#ifndef FW_LOCAL_Y
-#define FW_LOCAL_Y 1
-#endif
-
 /* FW_BATCH (fpiwarp/backends/opencl_batch.py): one launch warps (or maps
  * the points of) many images, launch dimension 2 naming which. Item z of
  * the launch reads block z of the stacked blocks (block_rows float4 rows
@@ -188,10 +180,8 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
  * (FW_COARSE_SELECT). */
 #ifdef FW_COARSE
 #define FW_COARSE_ARGS , __global const float *restrict coarse, int nx, int ny
-#define FW_PIXEL_MAP(block, px, py) fw_map_seeded(block, coarse, nx, ny, px, py)
 #else
 #define FW_COARSE_ARGS
-#define FW_PIXEL_MAP(block, px, py) fw_map(block, fw_cx((float)(px), (float)(py)))
 #endif
 #if defined(FW_COARSE) && defined(FW_BATCH)
 #define FW_COARSE_SELECT() (coarse += get_group_id(2) * (size_t)(FW_COARSE_FLOATS * nx * ny))
@@ -209,9 +199,15 @@ void warp_image(fw_block_t block, __global const FW_T *restrict src, int w, int 
     int l = get_local_id(0), oy = get_global_id(1);
     int gx0 = get_group_id(0) * FW_LOCAL_X; /* the group's first pixel */
     int row = get_local_id(1) * FW_LOCAL_X; /* the row's part of the local arrays */
-    fw_c s = FW_PIXEL_MAP(block, min(gx0 + l, ow - 1), min(oy, oh - 1));
+#ifdef FW_COARSE
+    __local fw_coarse_group_t group;
+    fw_map_coarse_group(block, coarse, nx, ny, row + l, min(gx0 + l, ow - 1), min(oy, oh - 1), gx0,
+                        get_group_id(1) * FW_LOCAL_Y, ow, oh, &group, pos_x, pos_y);
+#else
+    fw_c s = fw_map(block, fw_cx((float)min(gx0 + l, ow - 1), (float)min(oy, oh - 1)));
     pos_x[row + l] = s.re;
     pos_y[row + l] = s.im;
+#endif
     barrier(CLK_LOCAL_MEM_FENCE);
     if (l >= FW_LOCAL_X / FW_VN || oy >= oh)
         return;

@@ -40,6 +40,15 @@
 #define FW_PASTE_(a, b) a##b
 #define FW_PASTE(a, b) FW_PASTE_(a, b)
 
+/* the kernels' work-groups: FW_LOCAL_X work-items, warp_image's FW_LOCAL_X
+ * x FW_LOCAL_Y pixels (the host's -D options; these defaults otherwise) */
+#ifndef FW_LOCAL_X
+#define FW_LOCAL_X 64
+#endif
+#ifndef FW_LOCAL_Y
+#define FW_LOCAL_Y 1
+#endif
+
 #ifndef FW_STAGE_ROWS
 #error "the host prepends the block contract (fpiwarp.block.codegen.opencl_preamble)"
 #endif
@@ -297,24 +306,15 @@ typedef struct {
     fw_c x, a, b;
 } fw_seed_t;
 
-/* seeded (a compile-time false outside a coarse warp): where the value of
- * the spline at seed.x (no derivatives) lies within tol of the target, the
- * answer is seed.x - (a r + b conj(r)), r the residual (reference.newton);
- * elsewhere the loop below runs as without a seed */
-FW_FN fw_c fw_newton_seeded(fw_c target, fw_rows_t rows, int n, bool paired, int iters, float tol, bool seeded,
-                            fw_seed_t seed)
+/* A warp with the coarse pass checks the coarse seed first and solves
+ * here only where it fails (fw_map_coarse_group). */
+FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters, float tol)
 {
     fw_c mu1 = fw_at(rows, FW_ROW_MU12, 0), mu2 = fw_at(rows, FW_ROW_MU12, 2), mu3 = fw_at(rows, FW_ROW_MU3, 0);
     fw_c start = fw_rlinear(target, mu1, mu2, mu3), correction = fw_seed_correction(target, rows);
     fw_c x = fw_add(start, correction);
     fw_c dz, dzb;
     bool done = false;
-    if (seeded) {
-        fw_c res = fw_sub(fw_tps_d(seed.x, rows, n, paired, false, &dz, &dzb), target);
-        done = sqrt(fw_abs2(res)) <= tol; /* NaN: false */
-        fw_c step = fw_add(fw_mul(seed.a, res), fw_mul(seed.b, fw_conj(res)));
-        x = fw_select(done, fw_sub(seed.x, step), x);
-    }
     /* the solve from the table's seed, then, where it fails (the
      * reference's restarts): from the R-linear seed alone where the table's
      * correction is not 0, from the table's preimages at the corners of the
@@ -347,12 +347,6 @@ FW_FN fw_c fw_newton_seeded(fw_c target, fw_rows_t rows, int n, bool paired, int
     return fw_select(done, x, fw_cx(NAN, NAN));
 }
 
-FW_FN fw_c fw_newton(fw_c target, fw_rows_t rows, int n, bool paired, int iters, float tol)
-{
-    fw_seed_t none = {{0.0f, 0.0f}, {0.0f, 0.0f}, {0.0f, 0.0f}};
-    return fw_newton_seeded(target, rows, n, paired, iters, tol, false, none);
-}
-
 /* region r of a stage: the deepest region containing z wins */
 /* region r's depth at z: Re((z - origin) conj(normal)), > 0 inside */
 FW_FN float fw_region_depth(fw_rows_t rows, int r, fw_c z)
@@ -377,25 +371,43 @@ FW_FN fw_c fw_pre(fw_rows_t rows, fw_c z)
     return fw_div(fw_mul(fw_at(rows, FW_ROW_SCALE, 0), u), fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_PRE, 2), u)));
 }
 
-/* ---- one stage (reference.evaluate_stage) ------------------------------ */
-/* core, n, n_regions, iters: the stage's header row (compile-time
- * constants when the kind is known, so the unused branches fold away);
- * seeded, seed: a Newton core's coarse-pass seed (fw_newton_seeded). */
-FW_FN fw_seed_t fw_coarse_seed(__global const float *coarse, int nx, int ny, int px, int py);
-
-FW_FN fw_c fw_stage_seeded(fw_rows_t rows, fw_c z, bool seeded, __global const float *coarse, int nx, int ny,
-                           int px, int py, int core, int n, int n_regions, int iters)
+/* step 4 of a stage: the post-Möbius (reference._pre_core_post) */
+FW_FN fw_c fw_post(fw_rows_t rows, fw_c p)
 {
-    float best = 0.0f;
-    fw_c outside = fw_cx(NAN, NAN);
+    return fw_add(fw_at(rows, FW_ROW_POST, 2),
+                  fw_div(fw_mul(fw_at(rows, FW_ROW_SCALE, 2), p), fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_POST, 0), p))));
+}
+
+/* step 1 of a stage (reference.region_winner): its n_regions regions at
+ * z; *best > 0 where one holds z, *outside that region's similarity at z
+ * (NaN where none) */
+FW_FN void fw_regions(fw_rows_t rows, int n_regions, fw_c z, float *best, fw_c *outside)
+{
+    *best = 0.0f;
+    *outside = fw_cx(NAN, NAN);
     /* for r < n_regions, written out for FW_MAX_REGIONS regions */
 #if FW_MAX_REGIONS != 2
-#error "fw_stage_kind writes out two regions: FW_MAX_REGIONS changed"
+#error "fw_regions writes out two regions: FW_MAX_REGIONS changed"
 #endif
     if (n_regions > 0)
-        fw_region(rows, 0, z, &best, &outside);
+        fw_region(rows, 0, z, best, outside);
     if (n_regions > 1)
-        fw_region(rows, 1, z, &best, &outside);
+        fw_region(rows, 1, z, best, outside);
+}
+
+FW_FN bool fw_is_newton(int core)
+{
+    return core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE;
+}
+
+/* ---- one stage (reference.evaluate_stage) ------------------------------ */
+/* core, n, n_regions, iters: the stage's header row (compile-time
+ * constants when the kind is known, so the unused branches fold away) */
+FW_FN fw_c fw_stage_kind(fw_rows_t rows, fw_c z, int core, int n, int n_regions, int iters)
+{
+    float best;
+    fw_c outside;
+    fw_regions(rows, n_regions, z, &best, &outside);
     /* a point in a region takes its similarity: the costly cores are
      * skipped there (the affine core stays branch-free, so vectorized) */
     if (n_regions > 0 && core != FW_CORE_AFFINE && best > 0.0f)
@@ -406,24 +418,12 @@ FW_FN fw_c fw_stage_seeded(fw_rows_t rows, fw_c z, bool seeded, __global const f
     } else if (core == FW_CORE_TPS || core == FW_CORE_TPS_PAIRS) {
         fw_c dz, dzb;
         p = fw_tps(p, rows, n, core == FW_CORE_TPS_PAIRS, &dz, &dzb);
-    } else if (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE) {
-        /* the seed is read here only: pixels a region takes never load it */
-        fw_seed_t seed = {{NAN, NAN}, {NAN, NAN}, {NAN, NAN}};
-        if (seeded)
-            seed = fw_coarse_seed(coarse, nx, ny, px, py);
-        p = fw_newton_seeded(p, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, iters, rows[4 * FW_ROW_L3 + 2], seeded,
-                             seed);
+    } else if (fw_is_newton(core)) {
+        p = fw_newton(p, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, iters, rows[4 * FW_ROW_L3 + 2]);
     } else { /* a core this kernel does not know: outside (the host refuses it first) */
         p = fw_cx(NAN, NAN);
     }
-    fw_c w = fw_add(fw_at(rows, FW_ROW_POST, 2),
-                    fw_div(fw_mul(fw_at(rows, FW_ROW_SCALE, 2), p), fw_sub(fw_cx(1.0f, 0.0f), fw_mul(fw_at(rows, FW_ROW_POST, 0), p))));
-    return fw_select(best > 0.0f, outside, w);
-}
-
-FW_FN fw_c fw_stage_kind(fw_rows_t rows, fw_c z, int core, int n, int n_regions, int iters)
-{
-    return fw_stage_seeded(rows, z, false, 0, 0, 0, 0, 0, core, n, n_regions, iters);
+    return fw_select(best > 0.0f, outside, fw_post(rows, p));
 }
 
 /* the rows of stage k of a block */
@@ -528,7 +528,7 @@ FW_FN fw_seed_t fw_coarse_node(fw_block_t block, fw_c z)
     bool before = true; /* no Newton core yet (folds away with the kinds known) */
     bool first = true;  /* the block's first stage: its input is the output position */
 #define FW_APPLY_NODE(rows, core, n, n_regions, iters)                                                  \
-    if (before && (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE)) {                 \
+    if (before && fw_is_newton(core)) {                                                                 \
         if (!(first && n_regions > 0 && fw_node_unread(rows, n_regions, z))) {                          \
             bool paired = core == FW_CORE_TPS_PAIRS_INVERSE;                                            \
             fw_c x = fw_newton(fw_pre(rows, z), rows, n, paired, iters, rows[4 * FW_ROW_L3 + 2]), dz, dzb; \
@@ -579,23 +579,6 @@ FW_FN fw_seed_t fw_coarse_seed(__global const float *coarse, int nx, int ny, int
     return s;
 }
 
-/* fw_map of output pixel (px, py) with its coarse seed (nx x ny nodes'
- * records in coarse) for the block's first Newton core */
-FW_FN fw_c fw_map_seeded(fw_block_t block, __global const float *coarse, int nx, int ny, int px, int py)
-{
-    fw_c z = fw_cx((float)px, (float)py);
-    bool first = true;
-#define FW_APPLY_SEEDED(rows, core, n, n_regions, iters)                                     \
-    {                                                                                        \
-        bool newton = core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE;      \
-        z = fw_stage_seeded(rows, z, first && newton, coarse, nx, ny, px, py, core, n, n_regions, iters); \
-        first = first && !newton;                                                            \
-    }
-    FW_FOR_EACH_STAGE(block, FW_APPLY_SEEDED)
-#undef FW_APPLY_SEEDED
-    return z;
-}
-
 /* ---- derivatives of the block (fpiwarp/block/jacobian.py) -------------- */
 /* Only programs built with FW_AA (antialiased warp_image) compile these:
  * the block's values and Wirtinger derivatives (f_z, f_zbar), chained
@@ -640,7 +623,7 @@ FW_FN fw_c fw_stage_wirtinger_kind(fw_rows_t rows, fw_c z, fw_c *dz, fw_c *dzb, 
     } else if (core == FW_CORE_TPS || core == FW_CORE_TPS_PAIRS) {
         p = fw_tps(p, rows, n, core == FW_CORE_TPS_PAIRS, &gz, &gzb);
         fw_chain(gz, gzb, &sdz, &sdzb);
-    } else if (core == FW_CORE_TPS_INVERSE || core == FW_CORE_TPS_PAIRS_INVERSE) {
+    } else if (fw_is_newton(core)) {
         bool paired = core == FW_CORE_TPS_PAIRS_INVERSE;
         p = fw_newton(p, rows, n, paired, iters, rows[4 * FW_ROW_L3 + 2]);
         fw_tps(p, rows, n, paired, &gz, &gzb);
@@ -700,6 +683,8 @@ typedef uint fw_uv;
 #define FW_EACH_LANE(X, a) X(0, a)
 #define FW_LANE(v, k) (v)
 #define FW_VLOAD(p) (*(p))
+#define FW_VSTORE(v, p) (*(p) = (v))
+#define FW_AS_INT(v) as_int(v)
 #define FW_CONVERT(type, v) convert_##type(v)
 #define FW_AS_FLOAT(v) as_float(v)
 #elif FW_VN == 8
@@ -709,6 +694,8 @@ typedef uint8 fw_uv;
 #define FW_EACH_LANE(X, a) X(0, a) X(1, a) X(2, a) X(3, a) X(4, a) X(5, a) X(6, a) X(7, a)
 #define FW_LANE(v, k) (v).s##k
 #define FW_VLOAD(p) vload8(0, p)
+#define FW_VSTORE(v, p) vstore8(v, 0, p)
+#define FW_AS_INT(v) as_int8(v)
 #define FW_CONVERT(type, v) convert_##type##8(v)
 #define FW_AS_FLOAT(v) as_float8(v)
 #elif FW_VN == 16
@@ -735,6 +722,8 @@ typedef uint16 fw_uv;
 #define FW_LANE16_14(v) (v).se
 #define FW_LANE16_15(v) (v).sf
 #define FW_VLOAD(p) vload16(0, p)
+#define FW_VSTORE(v, p) vstore16(v, 0, p)
+#define FW_AS_INT(v) as_int16(v)
 #define FW_CONVERT(type, v) convert_##type##16(v)
 #define FW_AS_FLOAT(v) as_float16(v)
 #else
@@ -1075,6 +1064,256 @@ typedef struct __attribute__((packed)) {
 #define FW_ALL(v) all(v)
 #define FW_ANY(v) any(v)
 #endif
+/* ---- a warp's map with the coarse pass (fpiwarp/block/coarse.py) ------- */
+/* reference.newton with a seed: where the spline's value at the pixel's
+ * coarse seed x0 (coarse.pixel_seeds) lies within tol of the target t, the
+ * answer is x0 - (a r + b conj(r)), r the residual; elsewhere the solve
+ * without a seed (fw_newton). A work-group maps its pixels in phases split
+ * by barriers, so that the checks, one spline value per pixel the regions
+ * leave (the band), run FW_VN pixels at a time in vector types, one pair
+ * of centers after the other, and the costly Newton loop runs only for
+ * the pixels whose check fails (0.06 % of the band of
+ * benchmarks/local_speed.py's map):
+ *   1. each pixel: the stages before the block's first Newton stage, then
+ *      that stage's regions; a pixel a region takes keeps its similarity;
+ *   2. the band's pixels listed in order;
+ *   3. each listed pixel: its target (the pre-Möbius) and coarse seed, in
+ *      list order;
+ *   4. FW_VN listed pixels a work-item: the check;
+ *   5. each listed pixel: the solve where its check failed, then the
+ *      stage's post-Möbius;
+ *   6. each pixel: the stages after the Newton stage.
+ * Per pixel this is fw_map with the seed checked first, and the check's
+ * sum runs over the pairs in their order, as the reference's does. Phases
+ * 1, 3 and 6 are scalar code that CPU drivers vectorize across work-items:
+ * without the phases, the Newton loop in the same loop over work-items
+ * kept every pixel's map scalar, and the check ran 8 pairs at a time per
+ * pixel (benchmarks/results/cpu_profile.md). Needs the kind of map
+ * (FW_KIND_k). */
+#ifdef FW_COARSE
+#ifndef FW_KIND_0
+#error "a warp with the coarse pass is built with its kind of map (FW_KIND_k)"
+#endif
+#define FW_GROUP (FW_LOCAL_X * FW_LOCAL_Y)
+
+/* the work-group's arrays (local memory): by pixel (z, band) and by the
+ * band's list (t, the seed, done); 13 values a pixel, 52 KiB for a CPU's
+ * 1024-pixel groups (PoCL's local memory: 1 MiB), 6.5 KiB for a GPU's 128 */
+typedef struct {
+    float zr[FW_GROUP], zi[FW_GROUP]; /* the Newton stage's input, then (band) its output */
+    int band[FW_GROUP];
+    int list[FW_GROUP];               /* the band's pixels, in order */
+    float tr[FW_GROUP], ti[FW_GROUP]; /* the target */
+    float xr[FW_GROUP], xi[FW_GROUP]; /* the seed x0, then (done) the answer */
+    float ar[FW_GROUP], ai[FW_GROUP], br[FW_GROUP], bi[FW_GROUP];
+    int done[FW_GROUP];
+    int count;
+} fw_coarse_group_t;
+
+/* fw_log at FW_VN lanes (v > 0 finite) */
+FW_FN fw_fv fw_log_lanes(fw_fv v)
+{
+    fw_iv bits = FW_AS_INT(v);
+    fw_iv e = ((bits >> 23) & 255) - 127;
+    fw_fv m = FW_AS_FLOAT((bits & 0x007fffff) | 0x3f800000);
+    fw_iv big = m > 1.41421356f;
+    m = select(m, 0.5f * m, big);
+    e = select(e, e + 1, big);
+    fw_fv s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
+    fw_fv poly = 1.0f + s2 * (0.33333333f + s2 * (0.2f + s2 * (0.14285714f + s2 * 0.11111111f)));
+    return 2.0f * s * poly + FW_CONVERT(float, e) * 0.69314718f;
+}
+
+/* log v, 0 where v == 0 */
+FW_FN fw_fv fw_log0_lanes(fw_fv v)
+{
+    return select((fw_fv)0.0f, fw_log_lanes(select((fw_fv)1.0f, v, v > 0.0f)), v > 0.0f);
+}
+
+/* the TPS core's value (reference.tps_core, no derivatives) at FW_VN
+ * points (pr, pi), into (*vr, *vi); paired: tps_pairs.tps_pairs_core's
+ * terms, pair after pair */
+FW_FN void fw_tps_value_lanes(fw_fv pr, fw_fv pi, fw_rows_t rows, int n, bool paired, fw_fv *vr, fw_fv *vi)
+{
+    fw_c l1 = fw_at(rows, FW_ROW_L12, 0), l2 = fw_at(rows, FW_ROW_L12, 2), l3 = fw_at(rows, FW_ROW_L3, 0);
+    /* l1 p + l2 conj(p) + l3 */
+    fw_fv valr = ((l1.re * pr - l1.im * pi) + (l2.re * pr + l2.im * pi)) + l3.re;
+    fw_fv vali = ((l1.re * pi + l1.im * pr) + (l2.im * pr - l2.re * pi)) + l3.im;
+    if (!paired) {
+        for (int j = 0; j < n; ++j) {
+            fw_rows_t r = rows + 4 * (FW_ROW_CENTERS + j);
+            fw_fv dr = pr - r[0], di = pi - r[1];
+            fw_fv r2 = dr * dr + di * di;
+            fw_fv u = 0.5f * r2 * fw_log0_lanes(r2);
+            valr += r[2] * u;
+            vali += r[3] * u;
+        }
+        *vr = valr;
+        *vi = vali;
+        return;
+    }
+    fw_fv sr = 0.0f, si = 0.0f;
+    for (int j = 0; j < n; j += 2) {
+        fw_rows_t r = rows + 4 * (FW_ROW_CENTERS + j);
+        float wr = r[2], wi = r[3], dr = r[4], di = r[5], b2r = r[6], b2i = r[7];
+        fw_fv qr = pr - r[0], qi = pi - r[1];
+        fw_fv q2r = qr - dr, q2i = qi - di;
+        fw_fv a = qr * qr + qi * qi, b = q2r * q2r + q2i * q2i;
+        fw_fv e = (dr * dr + di * di) - 2.0f * (qr * dr + qi * di);
+        fw_iv near_a = a <= b;
+        fw_fv s = select(b, a, near_a), m = select(a, b, near_a);
+        /* tps_pairs.pair_logs, as fw_tps_pairs */
+        fw_fv ae = fabs(e);
+        fw_iv ok = (s > 0.0f) & (ae <= 0.25f * s);
+        fw_fv t = select((fw_fv)0.0f, ae / select((fw_fv)1.0f, 2.0f * s + ae, ok), ok), t2 = t * t;
+        fw_fv series = 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
+        fw_fv ls = fw_log0_lanes(s);
+        fw_fv lm = ls + series;
+        if (!FW_ALL(ok))
+            lm = select(fw_log0_lanes(m), lm, ok);
+        fw_fv mag = select(lm - ls, series, ok);
+        fw_fv big_l = select(mag, -mag, e < 0.0f);
+        fw_fv la = select(lm, ls, near_a);
+        fw_fv u = 0.5f * a * la, v2 = 0.5f * (e * lm + s * big_l);
+        sr += wr * u + b2r * v2;
+        si += wi * u + b2i * v2;
+    }
+    *vr = valr + sr;
+    *vi = vali + si;
+}
+
+/* The map of the work-group's pixel li (of FW_GROUP), output pixel
+ * (px, py), in the phases above, into (pos_re[li], pos_im[li]); every
+ * work-item of the group calls it. (gx0, gy0): the group's first pixel,
+ * ow x oh the output; coarse: the nx x ny nodes' records. No private value
+ * lives across a barrier but the pixel's indices: PoCL keeps such values
+ * in arrays of their own, and with a region's similarity (a complex) kept
+ * so, phase 1 ran in scalars. */
+FW_FN void fw_map_coarse_group(fw_block_t block, __global const float *coarse, int nx, int ny, int li, int px,
+                               int py, int gx0, int gy0, int ow, int oh, __local fw_coarse_group_t *g,
+                               __local float *pos_re, __local float *pos_im)
+{
+    /* 1. the stages before the first Newton stage, then its regions */
+    fw_c z = fw_cx((float)px, (float)py), outside = fw_cx(NAN, NAN);
+    float best = 0.0f;
+    bool before = true;
+#define FW_APPLY_BEFORE(rows, core, n, n_regions, iters)   \
+    if (before && fw_is_newton(core)) {                    \
+        fw_regions(rows, n_regions, z, &best, &outside);   \
+        before = false;                                    \
+    } else if (before) {                                   \
+        z = fw_stage_kind(rows, z, core, n, n_regions, iters); \
+    }
+    FW_FOR_EACH_STAGE(block, FW_APPLY_BEFORE)
+#undef FW_APPLY_BEFORE
+    g->zr[li] = z.re;
+    g->zi[li] = z.im;
+    g->band[li] = !(best > 0.0f);
+    pos_re[li] = outside.re;
+    pos_im[li] = outside.im;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    /* 2. the band's list (serially: a few cycles a pixel on a CPU, one
+     * work-item; on a GPU, where one work-item of many would idle the
+     * others, in parallel by a local counter: the list's order does not
+     * change any pixel's result) */
+#if FW_VN > 1
+    if (li == 0) {
+        int c = 0;
+        for (int k = 0; k < FW_GROUP; ++k) {
+            g->list[c] = k;
+            c += g->band[k];
+        }
+        g->count = c;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+#else
+    if (li == 0)
+        g->count = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (g->band[li])
+        g->list[atomic_inc(&g->count)] = li;
+    barrier(CLK_LOCAL_MEM_FENCE);
+#endif
+    int count = g->count;
+    /* 3. targets and seeds of the list */
+    bool found = false;
+#define FW_APPLY_SEEDS(rows, core, n, n_regions, iters)                                     \
+    if (!found && fw_is_newton(core)) {                                                     \
+        found = true;                                                                       \
+        if (li < count) {                                                                   \
+            int k = g->list[li];                                                            \
+            fw_c t = fw_pre(rows, fw_cx(g->zr[k], g->zi[k]));                               \
+            fw_seed_t seed = fw_coarse_seed(coarse, nx, ny, min(gx0 + k % FW_LOCAL_X, ow - 1), \
+                                            min(gy0 + k / FW_LOCAL_X, oh - 1));             \
+            g->tr[li] = t.re;                                                               \
+            g->ti[li] = t.im;                                                               \
+            g->xr[li] = seed.x.re;                                                          \
+            g->xi[li] = seed.x.im;                                                          \
+            g->ar[li] = seed.a.re;                                                          \
+            g->ai[li] = seed.a.im;                                                          \
+            g->br[li] = seed.b.re;                                                          \
+            g->bi[li] = seed.b.im;                                                          \
+        }                                                                                   \
+    }
+    FW_FOR_EACH_STAGE(block, FW_APPLY_SEEDS)
+#undef FW_APPLY_SEEDS
+    barrier(CLK_LOCAL_MEM_FENCE);
+    /* 4. the checks, FW_VN listed pixels a work-item (lanes past the
+     * list's end compute what the arrays hold there and are not read) */
+    found = false;
+#define FW_APPLY_CHECK(rows, core, n, n_regions, iters)                                         \
+    if (!found && fw_is_newton(core)) {                                                         \
+        found = true;                                                                           \
+        int at = FW_VN * li;                                                                    \
+        if (at < count) {                                                                       \
+            fw_fv xr = FW_VLOAD(g->xr + at), xi = FW_VLOAD(g->xi + at), vr, vi;                 \
+            fw_tps_value_lanes(xr, xi, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, &vr, &vi);   \
+            fw_fv rr = vr - FW_VLOAD(g->tr + at), ri = vi - FW_VLOAD(g->ti + at);               \
+            fw_iv ok = sqrt(rr * rr + ri * ri) <= rows[4 * FW_ROW_L3 + 2]; /* NaN: false */     \
+            fw_fv ar = FW_VLOAD(g->ar + at), ai = FW_VLOAD(g->ai + at);                         \
+            fw_fv br = FW_VLOAD(g->br + at), bi = FW_VLOAD(g->bi + at);                         \
+            /* x0 - (a r + b conj(r)) */                                                        \
+            FW_VSTORE(xr - ((ar * rr - ai * ri) + (br * rr + bi * ri)), g->xr + at);            \
+            FW_VSTORE(xi - ((ar * ri + ai * rr) + (bi * rr - br * ri)), g->xi + at);            \
+            FW_VSTORE(ok, g->done + at);                                                        \
+        }                                                                                       \
+    }
+    FW_FOR_EACH_STAGE(block, FW_APPLY_CHECK)
+#undef FW_APPLY_CHECK
+    barrier(CLK_LOCAL_MEM_FENCE);
+    /* 5. the solve where the check failed, the post-Möbius */
+    found = false;
+#define FW_APPLY_SOLVE(rows, core, n, n_regions, iters)                                                    \
+    if (!found && fw_is_newton(core)) {                                                                    \
+        found = true;                                                                                      \
+        if (li < count) {                                                                                  \
+            fw_c x = fw_cx(g->xr[li], g->xi[li]);                                                          \
+            if (!g->done[li])                                                                              \
+                x = fw_newton(fw_cx(g->tr[li], g->ti[li]), rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, iters, \
+                              rows[4 * FW_ROW_L3 + 2]);                                                    \
+            fw_c w = fw_post(rows, x);                                                                     \
+            int k = g->list[li];                                                                           \
+            g->zr[k] = w.re;                                                                               \
+            g->zi[k] = w.im;                                                                               \
+        }                                                                                                  \
+    }
+    FW_FOR_EACH_STAGE(block, FW_APPLY_SOLVE)
+#undef FW_APPLY_SOLVE
+    barrier(CLK_LOCAL_MEM_FENCE);
+    /* 6. the stages after the Newton stage */
+    z = g->band[li] ? fw_cx(g->zr[li], g->zi[li]) : fw_cx(pos_re[li], pos_im[li]);
+    found = false;
+#define FW_APPLY_AFTER(rows, core, n, n_regions, iters)       \
+    if (found)                                               \
+        z = fw_stage_kind(rows, z, core, n, n_regions, iters); \
+    found = found || fw_is_newton(core);
+    FW_FOR_EACH_STAGE(block, FW_APPLY_AFTER)
+#undef FW_APPLY_AFTER
+    pos_re[li] = z.re;
+    pos_im[li] = z.im;
+}
+#endif /* FW_COARSE */
+
 /* channel values at FW_VN pixels; c##k for k < FW_C are used */
 typedef struct {
     fw_fv c0, c1, c2, c3;
