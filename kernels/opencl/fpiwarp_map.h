@@ -129,25 +129,58 @@ FW_FN float fw_log(float v)
 typedef float8 fw_v;
 typedef int8 fw_vi;
 
-/* fw_log on eight lanes (v > 0 finite) */
-FW_FN fw_v fw_log_v(fw_v v)
-{
-    fw_vi bits = as_int8(v);
-    fw_vi e = ((bits >> 23) & 255) - 127;
-    fw_v m = as_float8((bits & 0x007fffff) | 0x3f800000);
-    fw_vi big = m > 1.41421356f;
-    m = select(m, 0.5f * m, big);
-    e = e - big; /* big is -1 where true */
-    fw_v s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
-    fw_v poly = 1.0f + s2 * (0.33333333f + s2 * (0.2f + s2 * (0.14285714f + s2 * 0.11111111f)));
-    return 2.0f * s * poly + convert_float8(e) * 0.69314718f;
-}
+/* FW_DEFINE_LOG(name, V, VI, AS_INT, AS_FLOAT, TO_FLOAT): fw_log's formula
+ * on vectors of type V (VI: their comparisons' type; AS_INT, AS_FLOAT,
+ * TO_FLOAT: the reinterpretations and conversion of V and VI) as `name`
+ * (v > 0 finite), and name##0: log v, 0 where v == 0. Here for the eight
+ * pairs of fw_tps_pairs, below for the FW_VN pixels of a warp's seed
+ * checks (fw_tps_value_lanes). */
+#define FW_DEFINE_LOG(name, V, VI, AS_INT, AS_FLOAT, TO_FLOAT)                                              \
+    FW_FN V name(V v)                                                                                     \
+    {                                                                                                     \
+        VI bits = AS_INT(v);                                                                              \
+        VI e = ((bits >> 23) & 255) - 127;                                                                \
+        V m = AS_FLOAT((bits & 0x007fffff) | 0x3f800000);                                                 \
+        VI big = m > 1.41421356f;                                                                         \
+        m = select(m, 0.5f * m, big);                                                                     \
+        e = select(e, e + 1, big);                                                                        \
+        V s = (m - 1.0f) / (m + 1.0f), s2 = s * s;                                                        \
+        V poly = 1.0f + s2 * (0.33333333f + s2 * (0.2f + s2 * (0.14285714f + s2 * 0.11111111f)));        \
+        return 2.0f * s * poly + TO_FLOAT(e) * 0.69314718f;                                               \
+    }                                                                                                     \
+    FW_FN V name##0(V v)                                                                                  \
+    {                                                                                                     \
+        return select((V)0.0f, name(select((V)1.0f, v, v > 0.0f)), v > 0.0f);                            \
+    }
+FW_DEFINE_LOG(fw_log_v, fw_v, fw_vi, as_int8, as_float8, convert_float8)
 
-/* log v, 0 where v == 0 */
-FW_FN fw_v fw_log0_v(fw_v v)
-{
-    return select((fw_v)0.0f, fw_log_v(select((fw_v)1.0f, v, v > 0.0f)), v > 0.0f);
-}
+/* FW_PAIR_TERM(V, VI, LOG0, ALL, qre, qim, dre, dim): the pieces of one
+ * pair's term (tps_pairs.tps_pairs_core) at p, q = p - c and d its
+ * offset, in type V (VI its comparisons', LOG0 its log0, ALL whether a
+ * VI is true in every lane): declares a = |q|^2, e = b - a, near_a
+ * (a <= b), s = min(a, b), big_l = L, la = log a, lm = log max(a, b),
+ * q2 = q - d and the value's two parts u (times W) and v2 (times b2).
+ * fw_tps_pairs runs it on eight pairs at one point, fw_tps_value_lanes
+ * on one pair at FW_VN points. */
+#define FW_PAIR_TERM(V, VI, LOG0, ALL, qre, qim, dre, dim)                                          \
+    V q2re = qre - dre, q2im = qim - dim;                                                        \
+    V a = qre * qre + qim * qim, b = q2re * q2re + q2im * q2im;                                  \
+    V e = (dre * dre + dim * dim) - 2.0f * (qre * dre + qim * dim);                              \
+    VI near_a = a <= b;                                                                          \
+    V s = select(b, a, near_a), m = select(a, b, near_a);                                        \
+    /* tps_pairs.pair_logs: log(max) from the series where it holds */                           \
+    V ae = fabs(e);                                                                              \
+    VI ok = (s > 0.0f) & (ae <= 0.25f * s);                                                      \
+    V t = select((V)0.0f, ae / select((V)1.0f, 2.0f * s + ae, ok), ok), t2 = t * t;              \
+    V series = 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));          \
+    V ls = LOG0(s);                                                                              \
+    V lm = ls + series;                                                                          \
+    if (!ALL(ok))                                                                                \
+        lm = select(LOG0(m), lm, ok);                                                            \
+    V mag = select(lm - ls, series, ok);                                                         \
+    V big_l = select(mag, -mag, e < 0.0f);                                                       \
+    V la = select(lm, ls, near_a);                                                               \
+    V u = 0.5f * a * la, v2 = 0.5f * (e * lm + s * big_l);
 
 FW_FN float fw_hsum(fw_v v)
 {
@@ -172,24 +205,7 @@ FW_FN void fw_tps_pairs(fw_c p, fw_rows_t rows, int n, bool deriv, fw_c *val, fw
         fw_v dre = FW_PAIR8(r, 1, x), dim = FW_PAIR8(r, 1, y);
         fw_v b2re = FW_PAIR8(r, 1, z), b2im = FW_PAIR8(r, 1, w);
         fw_v qre = p.re - FW_PAIR8(r, 0, x), qim = p.im - FW_PAIR8(r, 0, y);
-        fw_v q2re = qre - dre, q2im = qim - dim;
-        fw_v a = qre * qre + qim * qim, b = q2re * q2re + q2im * q2im;
-        fw_v e = (dre * dre + dim * dim) - 2.0f * (qre * dre + qim * dim);
-        fw_vi near_a = a <= b;
-        fw_v s = select(b, a, near_a), m = select(a, b, near_a);
-        /* tps_pairs.pair_logs: log(max) from the series where it holds */
-        fw_v ae = fabs(e);
-        fw_vi ok = (s > 0.0f) & (ae <= 0.25f * s);
-        fw_v t = select((fw_v)0.0f, ae / select((fw_v)1.0f, 2.0f * s + ae, ok), ok), t2 = t * t;
-        fw_v series = 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
-        fw_v ls = fw_log0_v(s);
-        fw_v lm = ls + series;
-        if (!all(ok))
-            lm = select(fw_log0_v(m), lm, ok);
-        fw_v mag = select(lm - ls, series, ok);
-        fw_v big_l = select(mag, -mag, e < 0.0f);
-        fw_v la = select(lm, ls, near_a);
-        fw_v u = 0.5f * a * la, v2 = 0.5f * (e * lm + s * big_l);
+        FW_PAIR_TERM(fw_v, fw_vi, fw_log_v0, all, qre, qim, dre, dim)
         vre += wre * u + b2re * v2;
         vim += wim * u + b2im * v2;
         if (!deriv)
@@ -1110,25 +1126,9 @@ typedef struct {
     int count;
 } fw_coarse_group_t;
 
-/* fw_log at FW_VN lanes (v > 0 finite) */
-FW_FN fw_fv fw_log_lanes(fw_fv v)
-{
-    fw_iv bits = FW_AS_INT(v);
-    fw_iv e = ((bits >> 23) & 255) - 127;
-    fw_fv m = FW_AS_FLOAT((bits & 0x007fffff) | 0x3f800000);
-    fw_iv big = m > 1.41421356f;
-    m = select(m, 0.5f * m, big);
-    e = select(e, e + 1, big);
-    fw_fv s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
-    fw_fv poly = 1.0f + s2 * (0.33333333f + s2 * (0.2f + s2 * (0.14285714f + s2 * 0.11111111f)));
-    return 2.0f * s * poly + FW_CONVERT(float, e) * 0.69314718f;
-}
-
-/* log v, 0 where v == 0 */
-FW_FN fw_fv fw_log0_lanes(fw_fv v)
-{
-    return select((fw_fv)0.0f, fw_log_lanes(select((fw_fv)1.0f, v, v > 0.0f)), v > 0.0f);
-}
+/* fw_log and its log0 at FW_VN lanes */
+#define FW_TO_FLOAT_LANES(v) FW_CONVERT(float, v)
+FW_DEFINE_LOG(fw_log_lanes, fw_fv, fw_iv, FW_AS_INT, FW_AS_FLOAT, FW_TO_FLOAT_LANES)
 
 /* the TPS core's value (reference.tps_core, no derivatives) at FW_VN
  * points (pr, pi), into (*vr, *vi); paired: tps_pairs.tps_pairs_core's
@@ -1144,7 +1144,7 @@ FW_FN void fw_tps_value_lanes(fw_fv pr, fw_fv pi, fw_rows_t rows, int n, bool pa
             fw_rows_t r = rows + 4 * (FW_ROW_CENTERS + j);
             fw_fv dr = pr - r[0], di = pi - r[1];
             fw_fv r2 = dr * dr + di * di;
-            fw_fv u = 0.5f * r2 * fw_log0_lanes(r2);
+            fw_fv u = 0.5f * r2 * fw_log_lanes0(r2);
             valr += r[2] * u;
             vali += r[3] * u;
         }
@@ -1157,30 +1157,22 @@ FW_FN void fw_tps_value_lanes(fw_fv pr, fw_fv pi, fw_rows_t rows, int n, bool pa
         fw_rows_t r = rows + 4 * (FW_ROW_CENTERS + j);
         float wr = r[2], wi = r[3], dr = r[4], di = r[5], b2r = r[6], b2i = r[7];
         fw_fv qr = pr - r[0], qi = pi - r[1];
-        fw_fv q2r = qr - dr, q2i = qi - di;
-        fw_fv a = qr * qr + qi * qi, b = q2r * q2r + q2i * q2i;
-        fw_fv e = (dr * dr + di * di) - 2.0f * (qr * dr + qi * di);
-        fw_iv near_a = a <= b;
-        fw_fv s = select(b, a, near_a), m = select(a, b, near_a);
-        /* tps_pairs.pair_logs, as fw_tps_pairs */
-        fw_fv ae = fabs(e);
-        fw_iv ok = (s > 0.0f) & (ae <= 0.25f * s);
-        fw_fv t = select((fw_fv)0.0f, ae / select((fw_fv)1.0f, 2.0f * s + ae, ok), ok), t2 = t * t;
-        fw_fv series = 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
-        fw_fv ls = fw_log0_lanes(s);
-        fw_fv lm = ls + series;
-        if (!FW_ALL(ok))
-            lm = select(fw_log0_lanes(m), lm, ok);
-        fw_fv mag = select(lm - ls, series, ok);
-        fw_fv big_l = select(mag, -mag, e < 0.0f);
-        fw_fv la = select(lm, ls, near_a);
-        fw_fv u = 0.5f * a * la, v2 = 0.5f * (e * lm + s * big_l);
+        FW_PAIR_TERM(fw_fv, fw_iv, fw_log_lanes0, FW_ALL, qr, qi, dr, di)
         sr += wr * u + b2r * v2;
         si += wi * u + b2i * v2;
     }
     *vr = valr + sr;
     *vi = vali + si;
 }
+
+/* FW_FOR_EACH_STAGE's APPLY for phases 3-5: FW_NEWTON_PHASE(rows, core, n,
+ * iters), which each phase defines, at the block's first Newton stage only
+ * (`found` false before the walk) */
+#define FW_AT_NEWTON(rows, core, n, n_regions, iters) \
+    if (!found && fw_is_newton(core)) {               \
+        found = true;                                 \
+        FW_NEWTON_PHASE(rows, core, n, iters)         \
+    }
 
 /* The map of the work-group's pixel li (of FW_GROUP), output pixel
  * (px, py), in the phases above, into (pos_re[li], pos_im[li]); every
@@ -1237,68 +1229,59 @@ FW_FN void fw_map_coarse_group(fw_block_t block, __global const float *coarse, i
     int count = g->count;
     /* 3. targets and seeds of the list */
     bool found = false;
-#define FW_APPLY_SEEDS(rows, core, n, n_regions, iters)                                     \
-    if (!found && fw_is_newton(core)) {                                                     \
-        found = true;                                                                       \
-        if (li < count) {                                                                   \
-            int k = g->list[li];                                                            \
-            fw_c t = fw_pre(rows, fw_cx(g->zr[k], g->zi[k]));                               \
-            fw_seed_t seed = fw_coarse_seed(coarse, nx, ny, min(gx0 + k % FW_LOCAL_X, ow - 1), \
-                                            min(gy0 + k / FW_LOCAL_X, oh - 1));             \
-            g->tr[li] = t.re;                                                               \
-            g->ti[li] = t.im;                                                               \
-            g->xr[li] = seed.x.re;                                                          \
-            g->xi[li] = seed.x.im;                                                          \
-            g->ar[li] = seed.a.re;                                                          \
-            g->ai[li] = seed.a.im;                                                          \
-            g->br[li] = seed.b.re;                                                          \
-            g->bi[li] = seed.b.im;                                                          \
-        }                                                                                   \
+#define FW_NEWTON_PHASE(rows, core, n, iters)                                                 \
+    if (li < count) {                                                                         \
+        int k = g->list[li];                                                                  \
+        fw_c t = fw_pre(rows, fw_cx(g->zr[k], g->zi[k]));                                     \
+        fw_seed_t seed = fw_coarse_seed(coarse, nx, ny, min(gx0 + k % FW_LOCAL_X, ow - 1),    \
+                                        min(gy0 + k / FW_LOCAL_X, oh - 1));                   \
+        g->tr[li] = t.re;                                                                     \
+        g->ti[li] = t.im;                                                                     \
+        g->xr[li] = seed.x.re;                                                                \
+        g->xi[li] = seed.x.im;                                                                \
+        g->ar[li] = seed.a.re;                                                                \
+        g->ai[li] = seed.a.im;                                                                \
+        g->br[li] = seed.b.re;                                                                \
+        g->bi[li] = seed.b.im;                                                                \
     }
-    FW_FOR_EACH_STAGE(block, FW_APPLY_SEEDS)
-#undef FW_APPLY_SEEDS
+    FW_FOR_EACH_STAGE(block, FW_AT_NEWTON)
+#undef FW_NEWTON_PHASE
     barrier(CLK_LOCAL_MEM_FENCE);
     /* 4. the checks, FW_VN listed pixels a work-item (lanes past the
      * list's end compute what the arrays hold there and are not read) */
     found = false;
-#define FW_APPLY_CHECK(rows, core, n, n_regions, iters)                                         \
-    if (!found && fw_is_newton(core)) {                                                         \
-        found = true;                                                                           \
-        int at = FW_VN * li;                                                                    \
-        if (at < count) {                                                                       \
-            fw_fv xr = FW_VLOAD(g->xr + at), xi = FW_VLOAD(g->xi + at), vr, vi;                 \
-            fw_tps_value_lanes(xr, xi, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, &vr, &vi);   \
-            fw_fv rr = vr - FW_VLOAD(g->tr + at), ri = vi - FW_VLOAD(g->ti + at);               \
-            fw_iv ok = sqrt(rr * rr + ri * ri) <= rows[4 * FW_ROW_L3 + 2]; /* NaN: false */     \
-            fw_fv ar = FW_VLOAD(g->ar + at), ai = FW_VLOAD(g->ai + at);                         \
-            fw_fv br = FW_VLOAD(g->br + at), bi = FW_VLOAD(g->bi + at);                         \
-            /* x0 - (a r + b conj(r)) */                                                        \
-            FW_VSTORE(xr - ((ar * rr - ai * ri) + (br * rr + bi * ri)), g->xr + at);            \
-            FW_VSTORE(xi - ((ar * ri + ai * rr) + (bi * rr - br * ri)), g->xi + at);            \
-            FW_VSTORE(ok, g->done + at);                                                        \
-        }                                                                                       \
+#define FW_NEWTON_PHASE(rows, core, n, iters)                                                 \
+    int at = FW_VN * li;                                                                      \
+    if (at < count) {                                                                         \
+        fw_fv xr = FW_VLOAD(g->xr + at), xi = FW_VLOAD(g->xi + at), vr, vi;                   \
+        fw_tps_value_lanes(xr, xi, rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, &vr, &vi);     \
+        fw_fv rr = vr - FW_VLOAD(g->tr + at), ri = vi - FW_VLOAD(g->ti + at);                 \
+        fw_iv ok = sqrt(rr * rr + ri * ri) <= rows[4 * FW_ROW_L3 + 2]; /* NaN: false */       \
+        fw_fv ar = FW_VLOAD(g->ar + at), ai = FW_VLOAD(g->ai + at);                           \
+        fw_fv br = FW_VLOAD(g->br + at), bi = FW_VLOAD(g->bi + at);                           \
+        /* x0 - (a r + b conj(r)) */                                                          \
+        FW_VSTORE(xr - ((ar * rr - ai * ri) + (br * rr + bi * ri)), g->xr + at);              \
+        FW_VSTORE(xi - ((ar * ri + ai * rr) + (bi * rr - br * ri)), g->xi + at);              \
+        FW_VSTORE(ok, g->done + at);                                                          \
     }
-    FW_FOR_EACH_STAGE(block, FW_APPLY_CHECK)
-#undef FW_APPLY_CHECK
+    FW_FOR_EACH_STAGE(block, FW_AT_NEWTON)
+#undef FW_NEWTON_PHASE
     barrier(CLK_LOCAL_MEM_FENCE);
     /* 5. the solve where the check failed, the post-Möbius */
     found = false;
-#define FW_APPLY_SOLVE(rows, core, n, n_regions, iters)                                                    \
-    if (!found && fw_is_newton(core)) {                                                                    \
-        found = true;                                                                                      \
-        if (li < count) {                                                                                  \
-            fw_c x = fw_cx(g->xr[li], g->xi[li]);                                                          \
-            if (!g->done[li])                                                                              \
-                x = fw_newton(fw_cx(g->tr[li], g->ti[li]), rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, iters, \
-                              rows[4 * FW_ROW_L3 + 2]);                                                    \
-            fw_c w = fw_post(rows, x);                                                                     \
-            int k = g->list[li];                                                                           \
-            g->zr[k] = w.re;                                                                               \
-            g->zi[k] = w.im;                                                                               \
-        }                                                                                                  \
+#define FW_NEWTON_PHASE(rows, core, n, iters)                                                 \
+    if (li < count) {                                                                         \
+        fw_c x = fw_cx(g->xr[li], g->xi[li]);                                                 \
+        if (!g->done[li])                                                                     \
+            x = fw_newton(fw_cx(g->tr[li], g->ti[li]), rows, n, core == FW_CORE_TPS_PAIRS_INVERSE, \
+                          iters, rows[4 * FW_ROW_L3 + 2]);                                    \
+        fw_c w = fw_post(rows, x);                                                            \
+        int k = g->list[li];                                                                  \
+        g->zr[k] = w.re;                                                                      \
+        g->zi[k] = w.im;                                                                      \
     }
-    FW_FOR_EACH_STAGE(block, FW_APPLY_SOLVE)
-#undef FW_APPLY_SOLVE
+    FW_FOR_EACH_STAGE(block, FW_AT_NEWTON)
+#undef FW_NEWTON_PHASE
     barrier(CLK_LOCAL_MEM_FENCE);
     /* 6. the stages after the Newton stage */
     z = g->band[li] ? fw_cx(g->zr[li], g->zi[li]) : fw_cx(pos_re[li], pos_im[li]);
@@ -1312,6 +1295,7 @@ FW_FN void fw_map_coarse_group(fw_block_t block, __global const float *coarse, i
     pos_re[li] = z.re;
     pos_im[li] = z.im;
 }
+#undef FW_AT_NEWTON
 #endif /* FW_COARSE */
 
 /* channel values at FW_VN pixels; c##k for k < FW_C are used */
