@@ -174,8 +174,9 @@ void map_points(fw_block_t block, __global const FW_POINT *restrict pts,
  * pixels per work-item in vector types, by the first FW_LOCAL_X / FW_VN
  * work-items of each row. */
 /* FW_COARSE (a map with a Newton core, fpiwarp/block/coarse.py): warp_image
- * takes the coarse pass's records (coarse_pass below, nx x ny nodes) and
- * seeds each pixel's Newton from them. A batch (FW_BATCH) holds the records
+ * takes the coarse pass's records (coarse_pass below, nx x ny nodes), and
+ * its map phase is fw_map_coarse_group's phases, which check each pixel's
+ * seed from them and solve where the check fails. A batch (FW_BATCH) holds the records
  * of each item of the launch, item z's from node z nx ny on
  * (FW_COARSE_SELECT). */
 #ifdef FW_COARSE

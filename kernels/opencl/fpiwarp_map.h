@@ -103,38 +103,14 @@ FW_FN fw_c fw_rlinear(fw_c p, fw_c l1, fw_c l2, fw_c l3)
     return fw_add(fw_add(fw_mul(l1, p), fw_mul(l2, fw_conj(p))), l3);
 }
 
-/* log(v) for v > 0 finite, branch-free: v = 2^e m, m in [sqrt(1/2), sqrt(2)),
- * log m = 2 atanh(s), s = (m - 1) / (m + 1), |s| < 0.172, series to s^9 */
-FW_FN float fw_log(float v)
-{
-    int bits = as_int(v);
-    int e = ((bits >> 23) & 255) - 127;
-    float m = as_float((bits & 0x007fffff) | 0x3f800000);
-    bool big = m > 1.41421356f;
-    m = big ? 0.5f * m : m;
-    e = big ? e + 1 : e;
-    float s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
-    float poly = 1.0f + s2 * (0.33333333f + s2 * (0.2f + s2 * (0.14285714f + s2 * 0.11111111f)));
-    return 2.0f * s * poly + (float)e * 0.69314718f;
-}
-
-/* ---- paired TPS terms (block/tps_pairs.py) ----------------------------- */
-/* Eight pairs at a time, one per lane of a float8 (explicit SIMD inside a
- * work-item: PoCL does not vectorize across work-items through the
- * data-dependent Newton loop, but compiles float8 arithmetic to vector
- * instructions). Lane k of group g is pair g + k; rows past n within the
- * last group are the block's zero rows (W = b2 = 0: a zero term). The
- * lanes' sums are added at the end: the order of the float32 sum differs
- * from the reference's, within the parity tolerances. */
-typedef float8 fw_v;
-typedef int8 fw_vi;
-
-/* FW_DEFINE_LOG(name, V, VI, AS_INT, AS_FLOAT, TO_FLOAT): fw_log's formula
- * on vectors of type V (VI: their comparisons' type; AS_INT, AS_FLOAT,
- * TO_FLOAT: the reinterpretations and conversion of V and VI) as `name`
- * (v > 0 finite), and name##0: log v, 0 where v == 0. Here for the eight
- * pairs of fw_tps_pairs, below for the FW_VN pixels of a warp's seed
- * checks (fw_tps_value_lanes). */
+/* FW_DEFINE_LOG(name, V, VI, AS_INT, AS_FLOAT, TO_FLOAT): log(v) for v > 0
+ * finite, branch-free (v = 2^e m, m in [sqrt(1/2), sqrt(2)), log m =
+ * 2 atanh(s), s = (m - 1) / (m + 1), |s| < 0.172, series to s^9) on
+ * scalars or vectors of type V (VI: their comparisons' type; AS_INT,
+ * AS_FLOAT, TO_FLOAT: the reinterpretations and conversion of V and VI) as
+ * `name`, and name##0: log v, 0 where v == 0. For scalars (fw_log), the
+ * eight pairs of fw_tps_pairs (fw_log_v) and the FW_VN pixels of a warp's
+ * seed checks (fw_log_lanes). */
 #define FW_DEFINE_LOG(name, V, VI, AS_INT, AS_FLOAT, TO_FLOAT)                                              \
     FW_FN V name(V v)                                                                                     \
     {                                                                                                     \
@@ -152,6 +128,19 @@ typedef int8 fw_vi;
     {                                                                                                     \
         return select((V)0.0f, name(select((V)1.0f, v, v > 0.0f)), v > 0.0f);                            \
     }
+FW_DEFINE_LOG(fw_log, float, int, as_int, as_float, convert_float)
+
+/* ---- paired TPS terms (block/tps_pairs.py) ----------------------------- */
+/* Eight pairs at a time, one per lane of a float8 (explicit SIMD inside a
+ * work-item: PoCL does not vectorize across work-items through the
+ * data-dependent Newton loop, but compiles float8 arithmetic to vector
+ * instructions). Lane k of group g is pair g + k; rows past n within the
+ * last group are the block's zero rows (W = b2 = 0: a zero term). The
+ * lanes' sums are added at the end: the order of the float32 sum differs
+ * from the reference's, within the parity tolerances. */
+typedef float8 fw_v;
+typedef int8 fw_vi;
+
 FW_DEFINE_LOG(fw_log_v, fw_v, fw_vi, as_int8, as_float8, convert_float8)
 
 /* FW_PAIR_TERM(V, VI, LOG0, ALL, qre, qim, dre, dim): the pieces of one
@@ -246,7 +235,7 @@ FW_FN fw_c fw_tps_d(fw_c p, fw_rows_t rows, int n, bool paired, bool deriv, fw_c
         fw_c c = fw_at(rows, FW_ROW_CENTERS + j, 0), b = fw_at(rows, FW_ROW_CENTERS + j, 2);
         fw_c d = fw_sub(p, c);
         float r2 = fw_abs2(d);
-        float lg = r2 > 0.0f ? fw_log(r2) : 0.0f;
+        float lg = fw_log0(r2);
         val = fw_add(val, fw_scale(b, 0.5f * r2 * lg));
         fw_c g = fw_scale(b, 0.5f * (lg + 1.0f));
         *dz = fw_add(*dz, fw_mul(g, fw_conj(d)));
